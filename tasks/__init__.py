@@ -1,0 +1,22 @@
+"""Pure numerics: scenes, exact event-driven simulation and regime classification.
+
+No Dask, no files. Public API::
+
+    from tasks import Scene, classify, regimes
+    res = classify(Scene("ground", 2, contact_mass=1, gamma=1.0, kappa=1.0), r, beta)
+"""
+
+from tasks import regimes
+from tasks.fidelity import PRESETS, Settings, resolve
+from tasks.result import FIELDS, ClassifyResult
+from tasks.scene import Scene
+
+__all__ = ["FIELDS", "PRESETS", "ClassifyResult", "Scene", "Settings", "classify", "regimes", "resolve"]
+
+
+def __getattr__(name: str):  # classify pulls in the compiled kernels lazily
+    if name == "classify":
+        from tasks.classify import classify
+
+        return classify
+    raise AttributeError(name)

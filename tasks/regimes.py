@@ -1,0 +1,79 @@
+"""Regime codes: the one place where the integer labels of a regime map are defined.
+
+Every part of the project (simulation, closed forms, netCDF flags, figures,
+reports) uses these constants; nothing else hard-codes the numbers.
+
+Non-negative codes are steady-state regimes (MODEL.md section 3, the paper's
+Tables 1-3). Negative codes mean *undetermined*, one code per reason, so that
+a point that did not settle is never silently given a regime.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+NO_MOTION = 0
+"""The contact stays stuck for the whole excitation period."""
+STICK_SLIP = 1
+"""The contact sticks for intervals of positive length and also slides."""
+CONTINUOUS = 2
+"""The contact never sticks: its relative velocity only crosses zero."""
+
+NOT_CONVERGED = -1
+"""No periodic steady state found within the cycle budget (``max_cycles``)."""
+UNBOUNDED = -2
+"""The response grows without bound (e.g. SDOF at r = 1 with beta < pi/4)."""
+EVENT_LIMIT = -3
+"""Too many events in one cycle (chattering or a degenerate event sequence)."""
+NUMERICAL_FAILURE = -4
+"""A non-finite state or an event that could not be located."""
+NOT_COMPUTED = -127
+"""Fill value of stored maps: the point has not been simulated (yet)."""
+
+REGIMES: dict[int, str] = {
+    NO_MOTION: "no_motion",
+    STICK_SLIP: "stick_slip",
+    CONTINUOUS: "continuous",
+}
+UNDETERMINED: dict[int, str] = {
+    NOT_CONVERGED: "not_converged",
+    UNBOUNDED: "unbounded_growth",
+    EVENT_LIMIT: "event_limit",
+    NUMERICAL_FAILURE: "numerical_failure",
+}
+ALL_CODES: dict[int, str] = {**REGIMES, **UNDETERMINED}
+"""Every code a simulation can return, with its name (CF ``flag_meanings``)."""
+
+INITIAL_CONDITIONS: dict[int, str] = {0: "held", 1: "rest"}
+"""Initial condition codes: ``held`` = contact stuck at zero relative
+displacement with the other masses on the forced response of the held system;
+``rest`` = everything at zero (used where the held system is resonant)."""
+IC_HELD = 0
+IC_REST = 1
+
+
+def name(code: int) -> str:
+    """Name of a regime code, e.g. ``name(1) == "stick_slip"``."""
+    return ALL_CODES.get(int(code), "not_computed" if code == NOT_COMPUTED else "unknown")
+
+
+def code(regime_name: str) -> int:
+    """Code of a regime name, inverse of :func:`name`."""
+    for c, n in ALL_CODES.items():
+        if n == regime_name:
+            return c
+    raise ValueError(f"unknown regime name {regime_name!r}; known: {sorted(ALL_CODES.values())}")
+
+
+def is_determined(regime: np.ndarray) -> np.ndarray:
+    """Boolean mask of points with a steady-state regime (code >= 0)."""
+    return np.asarray(regime) >= 0
+
+
+def cf_flag_attributes() -> dict[str, object]:
+    """CF-convention flag attributes for a stored ``regime`` variable."""
+    codes = sorted(ALL_CODES)
+    return {
+        "flag_values": np.array(codes, dtype=np.int8),
+        "flag_meanings": " ".join(ALL_CODES[c] for c in codes),
+    }

@@ -1,0 +1,215 @@
+"""A scene: one chain of masses with one Coulomb contact (MODEL.md sections 1-2).
+
+All three contact configurations of the paper are written in one form,
+
+    M x'' + K x = p cos(tau) + F_c b,                                  (*)
+
+with the contact force ``F_c = -beta sgn(b . x')`` while sliding and
+``|F_c| <= beta`` while stuck:
+
+========  ===============  ==================  ==================================
+contact   coordinates      load vector ``p``   contact direction ``b``
+========  ===============  ==================  ==================================
+ground    x (Eqs. 4, 65)   e_1                 e_j
+base      z = x - y 1      M 1 (Eq. 98)        e_j
+mass      x (Eq. 99)       e_1                 e_(j+1) - e_j (relative x_(j+1) - x_j)
+========  ===============  ==================  ==================================
+
+with ``M = r^2 diag(gamma)`` (Eq. 68) and ``K`` tridiagonal (Eq. 69). For the
+mass contact the spring kappa_(j+1) joining masses j and j+1 is in parallel with
+the contact (Fig. 16a), and the chain may have any number of masses.
+
+While stuck, ``b . x`` is frozen: ``x = T q + d0 w`` with ``b^T T = 0`` and
+``b^T w = 1``; the stuck mass leaves the state (ground, base) or the pair merges
+into one mass (mass contact), so only N - 1 coordinates move (Eqs. 131-135).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from numbers import Real
+
+import numpy as np
+
+CONTACTS = ("ground", "base", "mass")
+
+
+def _ratio_vector(name: str, value: float | Sequence[float], dof: int) -> tuple[float, ...]:
+    """Ratios of masses (or springs) 2..dof from a number or a sequence of dof - 1 numbers."""
+    if isinstance(value, bool):
+        raise ValueError(f"{name}: expected a positive number or {dof - 1} numbers, got a bool")
+    if isinstance(value, Real):
+        values = (float(value),) * (dof - 1)
+    else:
+        try:
+            values = tuple(float(v) for v in value)
+        except (TypeError, ValueError):
+            raise ValueError(
+                f"{name}: expected a positive number or a sequence of {dof - 1} numbers, "
+                f"got {value!r}"
+            ) from None
+        if len(values) != dof - 1:
+            raise ValueError(
+                f"{name}: a sequence must have dof - 1 = {dof - 1} entries "
+                f"(ratios of masses/springs 2..{dof}), got {len(values)}"
+            )
+    for v in values:
+        if not np.isfinite(v) or v <= 0.0:
+            raise ValueError(f"{name}: every ratio must be positive and finite, got {v!r}")
+    return values
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A chain of ``dof`` masses with one Coulomb contact.
+
+    Parameters
+    ----------
+    contact : {"ground", "base", "mass"}
+        Ground-fixed wall (Sect. 2), base-fixed wall (Sect. 3) or contact
+        between masses ``contact_mass`` and ``contact_mass + 1`` (Sect. 4).
+    dof : int
+        Number of masses N >= 1 (``"mass"`` needs N >= 2).
+    contact_mass : int
+        1-based index j of the mass in contact (``"mass"``: the lower mass of
+        the pair, 1 <= j <= N - 1).
+    gamma, kappa : float or sequence of float
+        Mass ratios gamma_i = m_i/m_1 and stiffness ratios kappa_i = k_i/k_1 for
+        i = 2..N (Eqs. 66-67): one number for all, or N - 1 numbers.
+
+    Raises
+    ------
+    ValueError
+        Naming the field and the rule it breaks.
+    """
+
+    contact: str
+    dof: int
+    contact_mass: int = 1
+    gamma: float | tuple[float, ...] = 1.0
+    kappa: float | tuple[float, ...] = 1.0
+    gammas: tuple[float, ...] = field(init=False, repr=False, compare=False)
+    kappas: tuple[float, ...] = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        if self.contact not in CONTACTS:
+            raise ValueError(f"contact: must be one of {CONTACTS}, got {self.contact!r}")
+        if isinstance(self.dof, bool) or not isinstance(self.dof, int | np.integer):
+            raise ValueError(f"dof: must be an integer >= 1, got {self.dof!r}")
+        if self.dof < 1:
+            raise ValueError(f"dof: must be >= 1, got {self.dof}")
+        if self.contact == "mass" and self.dof < 2:
+            raise ValueError("dof: a 'mass' contact joins two masses, so dof must be >= 2")
+        j = self.contact_mass
+        if isinstance(j, bool) or not isinstance(j, int | np.integer):
+            raise ValueError(f"contact_mass: must be an integer, got {j!r}")
+        last = self.dof - 1 if self.contact == "mass" else self.dof
+        if not 1 <= j <= last:
+            what = "lower mass of the contact pair" if self.contact == "mass" else "mass in contact"
+            raise ValueError(
+                f"contact_mass: the {what} must be in 1..{last} for dof = {self.dof}, got {j}"
+            )
+        gam = _ratio_vector("gamma", self.gamma, self.dof)
+        kap = _ratio_vector("kappa", self.kappa, self.dof)
+        object.__setattr__(self, "dof", int(self.dof))
+        object.__setattr__(self, "contact_mass", int(j))
+        # Canonical, hashable field values (a number stays a number when all equal).
+        for name, vals, given in (("gamma", gam, self.gamma), ("kappa", kap, self.kappa)):
+            canon = float(given) if isinstance(given, Real) else tuple(vals)
+            object.__setattr__(self, name, canon)
+        object.__setattr__(self, "gammas", (1.0, *gam))
+        object.__setattr__(self, "kappas", (1.0, *kap))
+
+    # ------------------------------------------------------------------ labels
+    @property
+    def label(self) -> str:
+        """Short name such as ``2dof_ground_m1`` or ``2dof_mass_m1``."""
+        return f"{self.dof}dof_{self.contact}_m{self.contact_mass}"
+
+    def to_dict(self) -> dict[str, object]:
+        """Plain-data description (for provenance and study files)."""
+        return {
+            "contact": self.contact,
+            "dof": self.dof,
+            "contact_mass": self.contact_mass,
+            "gamma": list(self.gamma) if isinstance(self.gamma, tuple) else self.gamma,
+            "kappa": list(self.kappa) if isinstance(self.kappa, tuple) else self.kappa,
+        }
+
+    # ---------------------------------------------------------------- matrices
+    @property
+    def mass_ratios(self) -> np.ndarray:
+        """gamma_1..gamma_N with gamma_1 = 1 (Eq. 66)."""
+        return np.array(self.gammas)
+
+    @property
+    def stiffness_ratios(self) -> np.ndarray:
+        """kappa_1..kappa_N with kappa_1 = 1 (Eq. 67)."""
+        return np.array(self.kappas)
+
+    def mass_matrix(self, r: float = 1.0) -> np.ndarray:
+        """M = r^2 diag(gamma) (Eq. 68)."""
+        return r * r * np.diag(self.mass_ratios)
+
+    def stiffness_matrix(self) -> np.ndarray:
+        """Tridiagonal K of Eq. 69: K[i,i] = kappa_i + kappa_(i+1), K[i,i+1] = -kappa_(i+1)."""
+        return stiffness_matrix(self.stiffness_ratios)
+
+    def load_vector(self, r: float = 1.0) -> np.ndarray:
+        """Amplitude p of the harmonic load p cos(tau) in the scene's coordinates."""
+        n = self.dof
+        if self.contact == "base":
+            return r * r * self.mass_ratios  # M 1 (Eq. 98, MODEL.md 2)
+        p = np.zeros(n)
+        p[0] = 1.0  # the base moves spring 1 (Eq. 65)
+        return p
+
+    def contact_vector(self) -> np.ndarray:
+        """Direction b of the contact force: the slip velocity is b . x'."""
+        b = np.zeros(self.dof)
+        j = self.contact_mass - 1
+        if self.contact == "mass":
+            b[j] = -1.0
+            b[j + 1] = 1.0
+        else:
+            b[j] = 1.0
+        return b
+
+    def stuck_basis(self) -> tuple[np.ndarray, np.ndarray]:
+        """Coordinates of the stuck system: ``x = T q + d0 w`` with b^T T = 0, b^T w = 1.
+
+        Ground/base: T drops coordinate j (Eq. 131). Mass: T merges masses j and
+        j + 1 into one coordinate (Eqs. 134-135).
+        """
+        n = self.dof
+        j = self.contact_mass - 1
+        cols = []
+        for i in range(n):
+            if i == j:
+                if self.contact == "mass":
+                    col = np.zeros(n)
+                    col[j] = col[j + 1] = 1.0
+                    cols.append(col)
+                continue
+            if self.contact == "mass" and i == j + 1:
+                continue
+            col = np.zeros(n)
+            col[i] = 1.0
+            cols.append(col)
+        T = np.array(cols).T if cols else np.zeros((n, 0))
+        w = np.zeros(n)
+        w[j + 1 if self.contact == "mass" else j] = 1.0
+        return T, w
+
+
+def stiffness_matrix(kappas: np.ndarray) -> np.ndarray:
+    """Tridiagonal stiffness matrix of a chain fixed to the base (Eq. 69)."""
+    kappas = np.asarray(kappas, dtype=float)
+    n = kappas.size
+    K = np.zeros((n, n))
+    for i in range(n):
+        K[i, i] = kappas[i] + (kappas[i + 1] if i + 1 < n else 0.0)
+        if i + 1 < n:
+            K[i, i + 1] = K[i + 1, i] = -kappas[i + 1]
+    return K
