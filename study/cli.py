@@ -1,0 +1,171 @@
+"""Command line: ``study run | plan | report`` (also ``python -m study``).
+
+Exit codes: 0 success, 1 a chunk failed, 2 bad input (one line on stderr,
+nothing written), 130 interrupted (finished chunks kept; rerun to resume).
+"""
+
+from __future__ import annotations
+
+import argparse
+import shlex
+import sys
+from pathlib import Path
+
+from study.errors import StudyError, StudyFailed, StudyInterrupted
+
+EXIT_FAILED = 1
+EXIT_BAD_INPUT = 2
+EXIT_INTERRUPTED = 130
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with a one-line error message (exit code 2)."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        self.exit(EXIT_BAD_INPUT, f"{self.prog}: error: {message}\n")
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be an integer >= 1, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be an integer >= 1, got {value}")
+    return value
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="study", description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    run = sub.add_parser("run", help="compute a study and write one netCDF file")
+    run.add_argument("study", type=Path, help="study file (TOML)")
+    run.add_argument("-o", "--output", type=Path, help="result file (default: STUDY_NAME.nc)")
+    where = run.add_mutually_exclusive_group()
+    where.add_argument("--scheduler", metavar="ADDRESS", help="address of a running scheduler")
+    where.add_argument("--scheduler-file", metavar="FILE", help="scheduler file of a running one")
+    run.add_argument(
+        "--workers",
+        type=_positive_int,
+        metavar="N",
+        help="local worker processes (default: one per core); with --scheduler: wait for N workers",
+    )
+    run.add_argument("--fidelity", help="override the study's fidelity preset")
+    run.add_argument("--retries", type=int, default=3, help="retries of a failing task")
+    run.add_argument("--quiet", action="store_true", help="no progress display")
+
+    pl = sub.add_parser("plan", help="points, tasks and estimated time, without running")
+    pl.add_argument("study", type=Path)
+    pl.add_argument("--fidelity")
+    pl.add_argument("--workers", type=_positive_int, metavar="N")
+    pl.add_argument(
+        "--calibrate",
+        action="store_true",
+        help="time tasks.classify on a sample of each scene on this machine",
+    )
+
+    rep = sub.add_parser("report", help="write the analysis report of a result file")
+    rep.add_argument("result", type=Path)
+    rep.add_argument("-o", "--output", type=Path, required=True, metavar="DIR")
+    return parser
+
+
+def _load(args) -> object:
+    from study.definition import Study
+
+    study = Study.from_toml(args.study)
+    if args.fidelity:
+        study = study.with_fidelity(args.fidelity)
+    return study
+
+
+def cmd_run(args) -> int:
+    from study.run import run_study
+
+    study = _load(args)
+    output = args.output or Path(f"{study.name}.nc")
+    command = "study " + " ".join(shlex.quote(a) for a in sys.argv[1:])
+    run_study(
+        study,
+        output,
+        scheduler=args.scheduler,
+        scheduler_file=args.scheduler_file,
+        workers=args.workers,
+        retries=args.retries,
+        progress=not args.quiet,
+        command=command,
+    )
+    return 0
+
+
+def cmd_plan(args) -> int:
+    from study.chunks import plan
+    from study.cost import calibrate
+    from study.run import default_workers
+
+    study = _load(args)
+    workers = args.workers or default_workers()
+    print(f"study {study.name}: fidelity {study.fidelity}, {study.n_points:,} points")
+    print(
+        f"{'scene':<24}{'kind':>7}{'points':>12}{'tasks':>9}{'pts/task':>10}"
+        f"{'est. s/task':>12}{'est. CPU s':>12}"
+    )
+    total_s = 0.0
+    n_tasks = 0
+    for p in plan(study):
+        n = p.spec.n_points
+        est = p.est_seconds
+        if args.calibrate and p.kind == "grid":
+            per = calibrate(
+                p.spec.base_scene,
+                study.settings,
+                p.spec.r.values_array(),
+                p.spec.beta.values_array(),
+            )
+            est = per * n
+        total_s += est
+        n_tasks += p.n_chunks
+        print(
+            f"{p.spec.name:<24}{p.kind:>7}{n:>12,}{p.n_chunks:>9,}"
+            f"{n / p.n_chunks:>10.0f}{est / p.n_chunks:>12.2f}{est:>12.1f}"
+        )
+    wall = total_s / workers
+    print(
+        f"total: {n_tasks:,} tasks, about {total_s:,.0f} CPU s; "
+        f"about {wall:,.0f} s on {workers} workers"
+        + ("" if args.calibrate else " (cost model; --calibrate to measure)")
+    )
+    return 0
+
+
+def cmd_report(args) -> int:
+    if not args.result.is_file():
+        raise StudyError("result", f"no such file: {args.result}")
+    from analysis.report import write_report
+
+    write_report(args.result, args.output)
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    handler = {"run": cmd_run, "plan": cmd_plan, "report": cmd_report}[args.command]
+    try:
+        return handler(args)
+    except StudyError as exc:
+        print(f"study: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except StudyInterrupted as exc:
+        print(f"study: {exc}", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except StudyFailed as exc:
+        print(f"study: error: {exc}", file=sys.stderr)
+        return EXIT_FAILED
+    except KeyboardInterrupt:
+        print("study: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,80 @@
+"""The Dask task: classify one chunk of points. Pure: same input, same output.
+
+Workers run only this module (and ``tasks``); they return numpy arrays and
+never touch files. The client persists each result (:mod:`study.store`).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from tasks.result import FIELDS
+from tasks.scene import Scene
+
+
+def compute_chunk(task: dict) -> dict[str, np.ndarray]:
+    """Run ``tasks.classify`` on the points of one chunk.
+
+    Parameters
+    ----------
+    task : dict
+        From :meth:`study.chunks.ScenePlan.task`: ``kind`` ("grid", "points"
+        or "trace"), ``scene`` (``Scene.to_dict()``), ``settings`` (resolved
+        ``Settings.to_dict()``), and the coordinates ``r``, ``beta`` (and
+        per-point ``gamma``, ``kappa`` for a point list).
+
+    Returns
+    -------
+    dict of numpy.ndarray
+        One array per field of ``tasks.result.FIELDS`` (grid: shape
+        ``(len(r), len(beta))``; points: ``(len(r),)``), plus ``seconds``,
+        the compute time of the chunk (a 0-d float array).
+    """
+    t0 = time.perf_counter()
+    kind = task["kind"]
+    if kind == "grid":
+        out = _classify(
+            task["scene"], task["settings"], *np.meshgrid(task["r"], task["beta"], indexing="ij")
+        )
+    elif kind == "points":
+        out = _classify_points(task)
+    elif kind == "trace":
+        from study.trace import trace_chunk
+
+        out = trace_chunk(task)
+    else:
+        raise ValueError(f"kind: unknown chunk kind {kind!r}")
+    out["seconds"] = np.float64(time.perf_counter() - t0)
+    return out
+
+
+def _classify(scene: dict, settings: dict, r: np.ndarray, beta: np.ndarray) -> dict:
+    from tasks import classify
+
+    res = classify(Scene(**scene), r, beta, **settings)
+    return {name: np.asarray(getattr(res, name), dtype=dt) for name, (dt, _) in FIELDS.items()}
+
+
+def _classify_points(task: dict) -> dict:
+    """A point list: group the points by their (gamma, kappa) and classify each group."""
+    r, beta = task["r"], task["beta"]
+    n = r.size
+    gamma = task.get("gamma", np.full(n, np.nan))
+    kappa = task.get("kappa", np.full(n, np.nan))
+    out = {name: np.zeros(n, dtype=dt) for name, (dt, _) in FIELDS.items()}
+    pairs = np.stack([gamma, kappa], axis=1)
+    for g, k in np.unique(pairs, axis=0):
+        sel = (np.isnan(gamma) if np.isnan(g) else gamma == g) & (
+            np.isnan(kappa) if np.isnan(k) else kappa == k
+        )
+        scene = dict(task["scene"])
+        if not np.isnan(g):
+            scene["gamma"] = float(g)
+        if not np.isnan(k):
+            scene["kappa"] = float(k)
+        part = _classify(scene, task["settings"], r[sel], beta[sel])
+        for name in out:
+            out[name][sel] = part[name]
+    return out

@@ -1,0 +1,70 @@
+"""Progress display on the client (stderr): points done, rate, ETA. No tqdm.
+
+Driven by the client's ``as_completed`` loop, so it works the same for a local
+cluster and a remote scheduler. Updates are throttled: at most every 0.5 s on a
+terminal (redrawn in place), every 10 s otherwise (one line each, for logs).
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from typing import TextIO
+
+
+def _clock(seconds: float) -> str:
+    seconds = int(round(seconds))
+    h, rest = divmod(seconds, 3600)
+    m, s = divmod(rest, 60)
+    return f"{h:d}:{m:02d}:{s:02d}"
+
+
+class Progress:
+    """Throttled progress line for ``total`` points, ``done`` of them already on disk."""
+
+    def __init__(
+        self,
+        total: int,
+        done: int = 0,
+        stream: TextIO | None = None,
+        interval: float | None = None,
+        enabled: bool = True,
+    ) -> None:
+        self.stream = stream if stream is not None else sys.stderr
+        self.tty = bool(getattr(self.stream, "isatty", lambda: False)())
+        self.interval = interval if interval is not None else (0.5 if self.tty else 10.0)
+        self.total = total
+        self.done = done
+        self.new = 0
+        self.enabled = enabled
+        self.t0 = time.monotonic()
+        self.last = self.t0
+
+    def update(self, n: int) -> None:
+        self.done += n
+        self.new += n
+        now = time.monotonic()
+        if self.enabled and now - self.last >= self.interval:
+            self.last = now
+            self._emit(self.line(now), final=False)
+
+    def line(self, now: float | None = None) -> str:
+        elapsed = max((now or time.monotonic()) - self.t0, 1e-9)
+        rate = self.new / elapsed
+        pct = 100.0 * self.done / self.total if self.total else 100.0
+        eta = _clock((self.total - self.done) / rate) if rate > 0 else "?"
+        return (
+            f"{self.done:,}/{self.total:,} points ({pct:5.1f}%) | {rate:,.0f} points/s | "
+            f"elapsed {_clock(elapsed)} | ETA {eta}"
+        )
+
+    def close(self) -> None:
+        if self.enabled:
+            self._emit(self.line(), final=True)
+
+    def _emit(self, text: str, final: bool) -> None:
+        if self.tty:
+            self.stream.write("\r\x1b[K" + text + ("\n" if final else ""))
+        else:
+            self.stream.write(text + "\n")
+        self.stream.flush()
