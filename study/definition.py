@@ -456,7 +456,7 @@ class Study:
         try:
             text = path.read_text(encoding="utf-8")
         except FileNotFoundError:
-            raise StudyError("", f"no such study file: {path}", str(path)) from None
+            raise StudyError("", "no such study file", str(path)) from None
         except (OSError, UnicodeDecodeError) as exc:
             raise StudyError("", f"cannot read the study file: {exc}", str(path)) from None
         try:
