@@ -7,16 +7,18 @@ No Dask, no files. Public API::
 """
 
 from tasks import regimes
+from tasks.classifier import classify
 from tasks.fidelity import PRESETS, Settings, resolve
 from tasks.result import FIELDS, ClassifyResult
 from tasks.scene import Scene
 
-__all__ = ["FIELDS", "PRESETS", "ClassifyResult", "Scene", "Settings", "classify", "regimes", "resolve"]
-
-
-def __getattr__(name: str):  # classify pulls in the compiled kernels lazily
-    if name == "classify":
-        from tasks.classify import classify
-
-        return classify
-    raise AttributeError(name)
+__all__ = [
+    "FIELDS",
+    "PRESETS",
+    "ClassifyResult",
+    "Scene",
+    "Settings",
+    "classify",
+    "regimes",
+    "resolve",
+]

@@ -100,7 +100,9 @@ def resolve(fidelity: str = "balanced", **overrides: object) -> Settings:
         raise ValueError(f"fidelity: must be one of {tuple(PRESETS)}, got {fidelity!r}")
     unknown = sorted(set(overrides) - set(SETTING_NAMES))
     if unknown:
-        raise ValueError(f"{unknown[0]}: unknown setting; known settings: {', '.join(SETTING_NAMES)}")
+        raise ValueError(
+            f"{unknown[0]}: unknown setting; known settings: {', '.join(SETTING_NAMES)}"
+        )
     base = PRESETS[fidelity]
     typed = {}
     for name, value in overrides.items():

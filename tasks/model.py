@@ -8,17 +8,20 @@ mass-normalised modes of the paper are ``psi_i = phi_i / r`` (Eq. 26).
 
 Two linear systems describe every phase of the motion (MODEL.md section 2):
 
-* **slip** (all N coordinates move): ``M x'' + K x = p cos tau - beta s b``;
+* **slip** (all N coordinates move, contact sliding with sign s):
+  ``M x'' + K x = p cos tau - beta s b``;
 * **stick** (N - 1 coordinates): with ``x = T q + d0 w`` (``b^T T = 0``,
   ``b^T w = 1``), ``T^T M T q'' + T^T K T q = T^T (p cos tau - d0 K w)``
-  (Eqs. 131-135).
+  (Eqs. 131-135): the stuck mass leaves the state (ground, base) or the pair
+  merges into one mass (mass contact).
 
-While stuck, the force that would accelerate the contact (the friction force
-the wall must supply, Eqs. 11b, 12b, 79b, 103b in one formula) is
+While stuck, the force the contact must transmit (Eqs. 11b, 12b, 79b, 103b in
+one formula) is
 
-    g = b^T M^-1 (p cos tau - K x) / (b^T M^-1 b),
+    g = b^T Gamma^-1 (p cos tau - K x) / (b^T Gamma^-1 b),
 
-and the contact stays stuck while ``|g| <= beta``.
+and the contact stays stuck while ``|g| <= beta``. While sliding, the contact
+acceleration is ``b . x'' = (b^T Gamma^-1 b / r^2) (g - beta s)``.
 """
 
 from __future__ import annotations
@@ -33,40 +36,83 @@ from tasks.scene import Scene
 
 @dataclass(frozen=True)
 class SceneModes:
-    """Arrays the simulator needs, for one scene (all independent of r, beta).
+    """Arrays the simulator needs for one scene (all independent of r and beta).
 
-    Attributes follow the module docstring; ``p0`` is the load vector at r = 1
-    and ``load_scales_r2`` says whether p scales with r^2 (base-fixed wall).
+    Slip system (n coordinates): ``lam``, ``phi`` (columns, ``phi^T Gamma phi = I``),
+    ``phi_t_gamma`` (``phi^T Gamma``: modal coordinates of x), ``w_slip``
+    (``b^T phi``: contact velocity per modal velocity), ``f_slip`` (``phi^T b``:
+    modal load per unit contact force).
+
+    Stuck system (m = n - 1 coordinates q, ``x = T q + d0 w``): ``lam_s``,
+    ``phi_s``, ``phi_s_t_gamma_s``, ``load_s`` (``phi_s^T T^T``: modal load of a
+    physical load), ``d_static`` (``phi_s^T T^T K w``: modal load per unit d0,
+    to be subtracted), ``proj`` (``(T^T Gamma T)^-1 T^T Gamma``: q from x, the
+    momentum-conserving projection).
+
+    Contact force: ``g_load`` (``Gamma^-1 b / (b^T Gamma^-1 b)``, so that
+    ``g = g_load . (p cos tau - K x)``), ``g_modes_s`` (g per stuck modal
+    coordinate, ``g_load^T K T phi_s``), ``g_d0`` (``g_load^T K w``) and
+    ``b_gamma_b`` (``b^T Gamma^-1 b``).
     """
 
     n: int
-    lam: np.ndarray  # (n,) slip-system eigenvalues lambda_i
-    phi: np.ndarray  # (n, n) slip modes, columns, phi^T Gamma phi = I
-    phi_t_gamma: np.ndarray  # (n, n) phi^T Gamma: modal coordinates of x
-    w_slip: np.ndarray  # (n,) b^T phi_i: contact velocity of each slip mode
-    f_slip: np.ndarray  # (n,) phi_i^T b: modal friction load per unit force
-    lam_s: np.ndarray  # (n-1,) stuck-system eigenvalues
-    phi_s: np.ndarray  # (n-1, n-1) stuck modes (q = phi_s zeta)
-    phi_s_t_gamma_s: np.ndarray  # (n-1, n-1)
-    phi_s_t_tt: np.ndarray  # (n-1, n) phi_s^T T^T: modal load of the stuck system
-    d_static: np.ndarray  # (n-1,) phi_s^T T^T K w: modal load per unit d0 (with minus sign)
-    T: np.ndarray  # (n, n-1)
-    w: np.ndarray  # (n,)
-    proj: np.ndarray  # (n-1, n) (T^T Gamma T)^-1 T^T Gamma: q from x - d0 w
-    b: np.ndarray  # (n,)
-    inv_gamma_b: np.ndarray  # (n,) Gamma^-1 b / (b^T Gamma^-1 b)
-    b_gamma_b: float  # b^T Gamma^-1 b
-    g_load: np.ndarray  # (n,) b^T Gamma^-1 / (b^T Gamma^-1 b): g = g_load . (p cos tau - K x)
-    g_x: np.ndarray  # (n,) g_load^T K
-    g_modes_s: np.ndarray  # (n-1,) (g_x T) phi_s_i: g per stuck modal coordinate
-    g_d0: float  # g_x . w: g per unit d0
-    p0: np.ndarray  # (n,) load vector at r = 1
+    gamma: np.ndarray
+    stiffness: np.ndarray
+    b: np.ndarray
+    p0: np.ndarray
     load_scales_r2: bool
-    stiffness: np.ndarray  # (n, n) K
+    lam: np.ndarray
+    phi: np.ndarray
+    phi_t_gamma: np.ndarray
+    w_slip: np.ndarray
+    f_slip: np.ndarray
+    T: np.ndarray
+    w: np.ndarray
+    lam_s: np.ndarray
+    phi_s: np.ndarray
+    phi_s_t_gamma_s: np.ndarray
+    load_s: np.ndarray
+    d_static: np.ndarray
+    proj: np.ndarray
+    g_load: np.ndarray
+    g_modes_s: np.ndarray
+    g_d0: float
+    b_gamma_b: float
+
+    def load(self, r: float) -> np.ndarray:
+        """Amplitude p of the harmonic load at frequency ratio r."""
+        return self.p0 * (r * r) if self.load_scales_r2 else self.p0
+
+    def kernel_args(self) -> tuple:
+        """The arrays in the order :func:`tasks.kernel.run_points` takes them."""
+        c = np.ascontiguousarray
+        return (
+            c(self.gamma),
+            c(self.stiffness),
+            c(self.b),
+            c(self.p0),
+            bool(self.load_scales_r2),
+            c(self.lam),
+            c(self.phi),
+            c(self.phi_t_gamma),
+            c(self.w_slip),
+            c(self.f_slip),
+            c(self.T),
+            c(self.w),
+            c(self.lam_s),
+            c(self.phi_s),
+            c(self.phi_s_t_gamma_s),
+            c(self.load_s),
+            c(self.d_static),
+            c(self.proj),
+            c(self.g_load),
+            c(self.g_modes_s),
+            float(self.g_d0),
+        )
 
 
-def _modes(K: np.ndarray, G: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Eigenpairs of K phi = lambda G phi, phi^T G phi = 1, ascending lambda."""
+def generalized_modes(K: np.ndarray, G: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Eigenpairs of ``K phi = lambda G phi`` with ``phi^T G phi = I``, ascending lambda."""
     if K.shape[0] == 0:
         return np.zeros(0), np.zeros((0, 0))
     lam, phi = eigh(K, G)
@@ -80,68 +126,36 @@ def scene_modes(scene: Scene) -> SceneModes:
     G = np.diag(gam)
     b = scene.contact_vector()
     T, w = scene.stuck_basis()
-    lam, phi = _modes(K, G)
+    lam, phi = generalized_modes(K, G)
     Gs = T.T @ G @ T
     Ks = T.T @ K @ T
-    lam_s, phi_s = _modes(Ks, Gs)
-    inv_g = 1.0 / gam
-    b_gamma_b = float(b @ (inv_g * b))
-    g_load = inv_g * b / b_gamma_b
-    g_x = g_load @ K
-    proj = np.linalg.solve(Gs, T.T @ G) if T.shape[1] else np.zeros((0, scene.dof))
+    lam_s, phi_s = generalized_modes(Ks, Gs)
+    b_gamma_b = float(b @ (b / gam))
+    g_load = (b / gam) / b_gamma_b
+    m = T.shape[1]
+    proj = np.linalg.solve(Gs, T.T @ G) if m else np.zeros((0, scene.dof))
     return SceneModes(
         n=scene.dof,
+        gamma=gam,
+        stiffness=K,
+        b=b,
+        p0=scene.load_vector(1.0),
+        load_scales_r2=scene.contact == "base",
         lam=lam,
         phi=phi,
         phi_t_gamma=phi.T @ G,
         w_slip=b @ phi,
         f_slip=phi.T @ b,
+        T=T,
+        w=w,
         lam_s=lam_s,
         phi_s=phi_s,
         phi_s_t_gamma_s=phi_s.T @ Gs,
-        phi_s_t_tt=phi_s.T @ T.T,
+        load_s=phi_s.T @ T.T,
         d_static=phi_s.T @ (T.T @ (K @ w)),
-        T=T,
-        w=w,
         proj=proj,
-        b=b,
-        inv_gamma_b=inv_g * b / b_gamma_b,
-        b_gamma_b=b_gamma_b,
         g_load=g_load,
-        g_x=g_x,
-        g_modes_s=(g_x @ T) @ phi_s if T.shape[1] else np.zeros(0),
-        g_d0=float(g_x @ w),
-        p0=scene.load_vector(1.0),
-        load_scales_r2=scene.contact == "base",
-        stiffness=K,
-    )
-
-
-def kernel_args(m: SceneModes) -> tuple:
-    """The modal data as the flat tuple of arrays the compiled kernel takes."""
-    c = np.ascontiguousarray
-    return (
-        c(m.lam),
-        c(m.phi),
-        c(m.phi_t_gamma),
-        c(m.w_slip),
-        c(m.f_slip),
-        c(m.lam_s),
-        c(m.phi_s),
-        c(m.phi_s_t_gamma_s),
-        c(m.phi_s_t_tt),
-        c(m.d_static),
-        c(m.T),
-        c(m.w),
-        c(m.proj),
-        c(m.b),
-        c(m.inv_gamma_b),
-        float(m.b_gamma_b),
-        c(m.g_load),
-        c(m.g_x),
-        c(m.g_modes_s),
-        float(m.g_d0),
-        c(m.p0),
-        bool(m.load_scales_r2),
-        c(m.stiffness),
+        g_modes_s=(g_load @ K @ T) @ phi_s if m else np.zeros(0),
+        g_d0=float(g_load @ K @ w),
+        b_gamma_b=b_gamma_b,
     )
