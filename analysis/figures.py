@@ -1,0 +1,450 @@
+"""Figures of regime maps, boundaries and their deviations (matplotlib, Agg, no pyplot).
+
+Every function builds a :class:`matplotlib.figure.Figure` from data and
+returns it; the ``save_*`` helpers write PNG files. Colours follow the paper:
+continuous blue, stick-slip orange, no motion grey. Undetermined points get
+one dark colour per reason (with a legend entry for each reason present);
+not-computed points are white. Closed-form boundaries: "paper" dashed,
+"exact" solid; traced numerical boundaries: dotted with markers. Infinite
+bounds are clipped just outside the axes, so peaks run off the top.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+from matplotlib.axes import Axes
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.colors import ListedColormap
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.patches import Patch
+from numpy.typing import ArrayLike
+
+from analysis.scoring import (
+    BOUNDARIES,
+    Agreement,
+    available_methods,
+    regime_codes,
+    regime_from_bounds,
+    scene_kind,
+    sweep_dims,
+)
+from tasks import regimes
+
+#: Colour of each regime code (the paper's colours for the three regimes).
+COLOURS: dict[int, str] = {
+    regimes.CONTINUOUS: "#4a90d9",
+    regimes.STICK_SLIP: "#f5a04a",
+    regimes.NO_MOTION: "#a6a6a6",
+    regimes.NOT_CONVERGED: "#000000",
+    regimes.UNBOUNDED: "#8b0000",
+    regimes.EVENT_LIMIT: "#6a1b9a",
+    regimes.NUMERICAL_FAILURE: "#c2185b",
+    regimes.NOT_COMPUTED: "#ffffff",
+}
+#: Colour of any other (unknown) negative code.
+UNKNOWN_COLOUR = "#ff00ff"
+#: Line style of each boundary method.
+LINESTYLES: dict[str, str] = {"paper": "--", "exact": "-", "numerical": ":"}
+#: Line colour of each boundary where no map is drawn beneath (traced scenes); on
+#: regime maps both boundaries are black (their position tells them apart).
+BOUNDARY_COLOURS: dict[str, str] = {"continuous": "#1f5fa8", "motion": "#000000"}
+_MAP_LINE_COLOUR = "#000000"
+#: Marker of each method in deviation plots (paper hollow squares, exact dots).
+_METHOD_MARKERS: dict[str, dict[str, object]] = {
+    "paper": {"marker": "s", "markersize": 6, "markerfacecolor": "none"},
+    "exact": {"marker": "o", "markersize": 3.5},
+}
+_METHOD_COLOURS: dict[str, str] = {"paper": "#d62728", "exact": "#1f77b4"}
+_PAD = 0.03  # fraction of the axis range by which clipped values overshoot it
+
+
+# --------------------------------------------------------------------------- helpers
+def _colour(code: int) -> str:
+    return COLOURS.get(int(code), UNKNOWN_COLOUR)
+
+
+def _label(code: int) -> str:
+    return regimes.name(int(code)).replace("_", " ")
+
+
+def _edges(centres: np.ndarray) -> np.ndarray:
+    """Cell edges around sorted cell centres (midpoints; half a step beyond the ends)."""
+    c = np.asarray(centres, dtype=float)
+    if c.size == 1:
+        half = 0.5 * abs(c[0]) if c[0] != 0 else 0.5
+        return np.array([c[0] - half, c[0] + half])
+    mid = 0.5 * (c[1:] + c[:-1])
+    return np.concatenate([[c[0] - (mid[0] - c[0])], mid, [c[-1] + (c[-1] - mid[-1])]])
+
+
+def clip_to(values: ArrayLike, lo: float, hi: float) -> np.ndarray:
+    """Values clipped just outside ``[lo, hi]`` (infinities included; NaN kept as gaps)."""
+    pad = _PAD * (hi - lo if hi > lo else 1.0)
+    return np.clip(np.asarray(values, dtype=float), lo - pad, hi + pad)
+
+
+def new_figure(width: float, height: float) -> Figure:
+    """A Figure with an Agg canvas and constrained layout (no pyplot state)."""
+    fig = Figure(figsize=(width, height), layout="constrained")
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def regime_handles(codes: Sequence[int]) -> list[Patch]:
+    """Legend patches: the three regimes always, then each other code present."""
+    present = set(int(c) for c in codes)
+    shown = [regimes.CONTINUOUS, regimes.STICK_SLIP, regimes.NO_MOTION]
+    shown += sorted((c for c in present if c not in shown), reverse=True)
+    return [Patch(facecolor=_colour(c), edgecolor="0.3", label=_label(c)) for c in shown]
+
+
+def boundary_handles(methods: Sequence[str], numerical: bool = False) -> list[Line2D]:
+    """Legend lines for the boundary methods (line style) and the two boundaries (colour)."""
+    out = [
+        Line2D([], [], color="0.2", linestyle=LINESTYLES.get(m, "-"), label=f"{m} closed form")
+        for m in methods
+    ]
+    if numerical:
+        out.append(Line2D([], [], color="0.2", linestyle=":", marker=".", label="numerical"))
+    return out
+
+
+# --------------------------------------------------------------------------- drawing
+def draw_regime_map(
+    ax: Axes,
+    regime: ArrayLike,
+    r: ArrayLike,
+    beta: ArrayLike,
+) -> set[int]:
+    """Draw an (r, beta) regime map into ``ax`` (r on x, beta on y).
+
+    Parameters
+    ----------
+    ax : matplotlib.axes.Axes
+    regime : array_like
+        ``(n_r, n_beta)`` regime codes.
+    r, beta : array_like
+        Coordinates (any order; the map is sorted).
+
+    Returns
+    -------
+    set of int
+        Codes present in the map (for the legend).
+    """
+    regime = np.asarray(regime)
+    r, beta = np.asarray(r, dtype=float), np.asarray(beta, dtype=float)
+    ir, ib = np.argsort(r), np.argsort(beta)
+    regime = regime[np.ix_(ir, ib)]
+    codes = sorted(set(np.unique(regime).tolist()))
+    index = np.searchsorted(codes, regime)
+    cmap = ListedColormap([_colour(c) for c in codes])
+    ax.pcolormesh(
+        _edges(r[ir]),
+        _edges(beta[ib]),
+        index.T,
+        cmap=cmap,
+        vmin=-0.5,
+        vmax=len(codes) - 0.5,
+        shading="flat",
+        rasterized=True,
+    )
+    ax.set_xlim(_edges(r[ir])[[0, -1]])
+    ax.set_ylim(_edges(beta[ib])[[0, -1]])
+    ax.set_xlabel("r")
+    ax.set_ylabel(r"$\beta$")
+    return set(codes)
+
+
+def draw_boundaries(
+    ax: Axes,
+    r: ArrayLike,
+    bounds: Mapping[str, tuple[ArrayLike, ArrayLike]],
+    ylim: tuple[float, float] | None = None,
+    colours: Mapping[str, str] | None = None,
+) -> None:
+    """Overlay boundaries ``{method: (beta_continuous, beta_motion)}`` along r.
+
+    Values are clipped just outside ``ylim`` (default: the current y limits),
+    which are kept; NaN values leave gaps. ``colours`` maps "continuous" and
+    "motion" to line colours (default: black for both, as on a regime map).
+    """
+    colours = colours or dict.fromkeys(BOUNDARIES, _MAP_LINE_COLOUR)
+    lo, hi = ylim if ylim is not None else ax.get_ylim()
+    r = np.asarray(r, dtype=float)
+    order = np.argsort(r)
+    for method, pair in bounds.items():
+        numerical = method == "numerical"
+        for name, values in zip(BOUNDARIES, pair, strict=True):
+            ax.plot(
+                r[order],
+                clip_to(np.asarray(values, dtype=float)[order], lo, hi),
+                color=colours[name],
+                linestyle=LINESTYLES.get(method, "-"),
+                marker="." if numerical else None,
+                markersize=3,
+                linewidth=1.2,
+            )
+    ax.set_ylim(lo, hi)
+
+
+def _bounds_of(ds: xr.Dataset, methods: Sequence[str]) -> dict[str, tuple[np.ndarray, ...]]:
+    return {
+        m: (
+            ds[f"beta_continuous_{m}"].transpose("r").values,
+            ds[f"beta_motion_{m}"].transpose("r").values,
+        )
+        for m in methods
+    }
+
+
+def _plane_title(coords: Mapping[str, float]) -> str:
+    return ", ".join(f"{k} = {v:g}" for k, v in coords.items())
+
+
+def _beta_range(ds: xr.Dataset, values: Sequence[np.ndarray]) -> tuple[float, float]:
+    """y range of a traced scene: its ``beta_range`` attribute, else the finite values."""
+    if "beta_range" in ds.attrs:
+        import json
+
+        lo, hi = json.loads(ds.attrs["beta_range"])
+        return float(lo), float(hi)
+    finite = np.concatenate([v[np.isfinite(v)] for v in values] + [np.zeros(1)])
+    hi = float(finite.max())
+    return 0.0, hi if hi > 0 else 1.0
+
+
+def _draw_plane(ax: Axes, plane: xr.Dataset, kind: str, methods: Sequence[str]) -> set[int]:
+    """One panel: a regime map with bounds (grid) or the bounds alone (trace)."""
+    r = plane["r"].values
+    bounds = _bounds_of(plane, methods)
+    if kind == "trace":
+        numerical = (
+            plane["beta_continuous_numerical"].transpose("r").values,
+            plane["beta_motion_numerical"].transpose("r").values,
+        )
+        bounds["numerical"] = numerical
+        lo, hi = _beta_range(plane, [v for pair in bounds.values() for v in pair])
+        ax.set_xlim(float(np.min(r)), float(np.max(r)))
+        ax.set_xlabel("r")
+        ax.set_ylabel(r"$\beta$")
+        draw_boundaries(ax, r, bounds, (lo, hi), BOUNDARY_COLOURS)
+        return set()
+    codes = draw_regime_map(
+        ax, regime_codes(plane["regime"].transpose("r", "beta")), r, plane["beta"].values
+    )
+    draw_boundaries(ax, r, bounds)
+    return codes
+
+
+def _layout(sizes: Mapping[str, int]) -> tuple[int, int]:
+    """(rows, columns) of small multiples: gamma x kappa, or a wrapped row for one sweep."""
+    dims = list(sizes)
+    if len(dims) == 2:
+        return sizes[dims[0]], sizes[dims[1]]
+    n = math.prod(sizes.values()) if sizes else 1
+    ncols = min(n, 3)
+    return math.ceil(n / ncols), ncols
+
+
+def regime_map_figure(ds: xr.Dataset, title: str | None = None) -> Figure:
+    """Regime map of one scene with the closed-form boundaries overlaid.
+
+    Grid scenes: one panel per (gamma, kappa) plane (small multiples for
+    sweeps). Traced scenes: the traced and closed-form boundaries. Point
+    lists: :func:`points_figure`.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        One scene of a result file.
+    title : str, optional
+        Figure title (default: the scene label or name).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    kind = scene_kind(ds)
+    if kind == "points":
+        return points_figure(ds, title=title)
+    methods = available_methods(ds)
+    sweeps = sweep_dims(ds)
+    sizes = {d: ds.sizes[d] for d in sweeps}
+    nrows, ncols = _layout(sizes)
+    fig = new_figure(3.6 * ncols + 1.6, 3.0 * nrows + 0.6)
+    axes = fig.subplots(nrows, ncols, squeeze=False, sharex=True, sharey=True)
+    codes: set[int] = set()
+    planes = list(np.ndindex(*sizes.values())) if sweeps else [()]
+    for n, idx in enumerate(planes):
+        ax = axes.flat[n]
+        sel = dict(zip(sweeps, idx, strict=True))
+        plane = ds.isel(sel) if sel else ds
+        codes |= _draw_plane(ax, plane, kind, methods)
+        if sel:
+            ax.set_title(_plane_title({d: float(ds[d].values[i]) for d, i in sel.items()}))
+        if not ax.get_subplotspec().is_first_col():
+            ax.set_ylabel("")
+    for ax in axes.flat[len(planes) :]:
+        ax.set_visible(False)
+    handles = (regime_handles(sorted(codes)) if kind != "trace" else []) + boundary_handles(
+        methods, numerical=kind == "trace"
+    )
+    if kind == "trace":
+        handles += [
+            Line2D([], [], color=BOUNDARY_COLOURS[b], label=f"{b} boundary") for b in BOUNDARIES
+        ]
+    fig.legend(handles=handles, loc="outside right center", fontsize="small")
+    fig.suptitle(title or ds.attrs.get("scene_label") or ds.attrs.get("scene_name", ""))
+    return fig
+
+
+def points_figure(
+    ds: xr.Dataset, methods: Sequence[str] | None = None, title: str | None = None
+) -> Figure:
+    """Scatter of a point-list scene in the (r, beta) plane, one panel per method.
+
+    Points are coloured by simulated regime (undetermined ones by reason);
+    points where the method predicts another regime are ringed in red.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A point-list scene (dim ``point``).
+    methods : sequence of str, optional
+        Closed-form methods (default: those in ``ds``).
+    title : str, optional
+        Figure title.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    methods = list(methods if methods is not None else available_methods(ds))
+    regime = regime_codes(ds["regime"])
+    r, beta = ds["r"].values.astype(float), ds["beta"].values.astype(float)
+    n = max(len(methods), 1)
+    fig = new_figure(3.8 * n + 1.6, 3.4)
+    axes = fig.subplots(1, n, squeeze=False, sharey=True)[0]
+    codes = sorted(set(regime.tolist()))
+    for ax, method in zip(axes, methods or [None], strict=True):
+        for c in codes:
+            sel = regime == c
+            marker = "o" if regimes.is_determined(c) else "X"
+            ax.scatter(
+                r[sel],
+                beta[sel],
+                s=22,
+                c=_colour(c),
+                marker=marker,
+                edgecolors="0.3",
+                linewidths=0.4,
+                zorder=2,
+            )
+        if method is not None:
+            predicted = regime_from_bounds(
+                beta, ds[f"beta_continuous_{method}"].values, ds[f"beta_motion_{method}"].values
+            )
+            wrong = regimes.is_determined(regime) & (predicted != regime)
+            wrong &= predicted != regimes.NOT_COMPUTED
+            ax.scatter(
+                r[wrong],
+                beta[wrong],
+                s=90,
+                facecolors="none",
+                edgecolors="red",
+                linewidths=1.2,
+                zorder=3,
+            )
+            ax.set_title(f"{method}: {int(wrong.sum())} misclassified")
+        ax.set_xlabel("r")
+    axes[0].set_ylabel(r"$\beta$")
+    handles = regime_handles(codes) + [
+        Line2D(
+            [],
+            [],
+            linestyle="none",
+            marker="o",
+            markerfacecolor="none",
+            markeredgecolor="red",
+            markersize=9,
+            label="misclassified",
+        )
+    ]
+    fig.legend(handles=handles, loc="outside right center", fontsize="small")
+    fig.suptitle(title or ds.attrs.get("scene_label") or ds.attrs.get("scene_name", ""))
+    return fig
+
+
+def deviation_figure(agreements: Mapping[str, Agreement], title: str | None = None) -> Figure:
+    """Numerical minus closed-form boundary vs r, both boundaries, one line per method.
+
+    Pooled sweeps (r repeats) are drawn as markers only. Columns without a
+    finite deviation (open brackets, infinite bounds) are left out.
+
+    Parameters
+    ----------
+    agreements : mapping of str to Agreement
+        Per method, from :func:`analysis.scoring.score_dataset`.
+    title : str, optional
+        Figure title.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    fig = new_figure(6.4, 5.0)
+    axes = fig.subplots(2, 1, sharex=True)
+    for ax, name in zip(axes, BOUNDARIES, strict=True):
+        ax.axhline(0.0, color="0.6", linewidth=0.8)
+        for method, a in agreements.items():
+            dev = a.deviations.get(name)
+            if dev is None:
+                continue
+            r, d = dev.r, dev.deviation
+            ok = np.isfinite(d)
+            repeated = np.unique(r).size < r.size
+            order = np.argsort(r[ok], kind="stable")
+            ax.plot(
+                r[ok][order],
+                d[ok][order],
+                linestyle="none" if repeated else LINESTYLES.get(method, "-"),
+                color=_METHOD_COLOURS.get(method, "0.2"),
+                **_METHOD_MARKERS.get(method, {"marker": "o", "markersize": 3.5}),
+                label=f"{method} ({dev.n_compared}/{dev.n_columns} columns)",
+            )
+        ax.set_ylabel(rf"$\Delta\beta_{{\mathrm{{{name}}}}}$")
+        ax.set_title(f"{name} boundary: numerical $-$ closed form", fontsize="medium")
+        if ax.has_data() and ax.get_legend_handles_labels()[0]:
+            ax.legend(fontsize="small")
+    axes[-1].set_xlabel("r")
+    if title:
+        fig.suptitle(title)
+    return fig
+
+
+# --------------------------------------------------------------------------- saving
+def save_figure(fig: Figure, path: str | os.PathLike, dpi: int = 110) -> Path:
+    """Write ``fig`` as PNG to ``path`` (parent folders created) and return the path."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, format="png", dpi=dpi)
+    return path
+
+
+def save_regime_map(ds: xr.Dataset, path: str | os.PathLike, dpi: int = 110) -> Path:
+    """Write :func:`regime_map_figure` of a scene as PNG."""
+    return save_figure(regime_map_figure(ds), path, dpi)
+
+
+def save_deviation(
+    agreements: Mapping[str, Agreement], path: str | os.PathLike, dpi: int = 110, **kw
+) -> Path:
+    """Write :func:`deviation_figure` as PNG."""
+    return save_figure(deviation_figure(agreements, **kw), path, dpi)

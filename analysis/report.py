@@ -1,0 +1,419 @@
+"""Markdown report of a result file: agreement scores, figures and provenance.
+
+``write_report(result, out_dir)`` reads one netCDF4 result (a single scene at
+the root, or one group per scene), scores every scene against the closed forms
+("paper" and "exact", :mod:`analysis.scoring`), draws its figures
+(:mod:`analysis.figures`) as PNG files in ``out_dir`` and writes
+``out_dir/report.md`` linking them. The markdown is written last, to a
+temporary name replaced into place, so an interrupted run never leaves a
+``report.md`` that looks complete.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import re
+from collections.abc import Iterable, Mapping, Sequence
+from datetime import UTC, datetime
+from pathlib import Path
+
+import netCDF4
+import xarray as xr
+
+from analysis import figures
+from analysis.scoring import (
+    REGIME_ORDER,
+    Agreement,
+    scene_kind,
+    score_dataset,
+    sweep_dims,
+)
+from tasks import regimes
+
+#: At most this many undetermined points (or non-monotone columns) are listed per scene.
+MAX_LISTED = 50
+REPORT_NAME = "report.md"
+
+
+# --------------------------------------------------------------------------- reading
+def open_result(path: str | os.PathLike) -> tuple[dict[str, xr.Dataset], dict[str, object]]:
+    """Scenes of a result file, loaded into memory, and its global attributes.
+
+    Parameters
+    ----------
+    path : path-like
+        A netCDF4 result: one scene at the root, or one group per scene.
+
+    Returns
+    -------
+    scenes : dict of str to xarray.Dataset
+        Scene name -> Dataset (a root scene keeps the global attributes too).
+    attrs : dict
+        Global attributes (``study``, ``study_name``, ``history``, ``versions``, ...).
+    """
+    with netCDF4.Dataset(path) as nc:
+        grouped = bool(nc.groups)
+    if not grouped:
+        with xr.open_dataset(path, engine="netcdf4") as ds:
+            ds = ds.load()
+        name = str(ds.attrs.get("scene_name") or Path(path).stem)
+        return {name: ds}, dict(ds.attrs)
+    tree = xr.open_datatree(path, engine="netcdf4")
+    try:
+        scenes = {
+            str(name): node.to_dataset(inherit=False).load() for name, node in tree.children.items()
+        }
+        return scenes, dict(tree.attrs)
+    finally:
+        tree.close()
+
+
+# --------------------------------------------------------------------------- formatting
+def _num(x: float, digits: int = 4) -> str:
+    """A number for a table: ``n/a`` for NaN, ``inf`` for infinities."""
+    if x is None or (isinstance(x, float) and math.isnan(x)):
+        return "n/a"
+    if math.isinf(x):
+        return "inf" if x > 0 else "-inf"
+    return f"{x:.{digits}g}"
+
+
+def _pct(num: int, den: int) -> str:
+    """``87.50 % (7/8)``, or ``n/a (0/0)``."""
+    return f"{100.0 * num / den:.2f} % ({num}/{den})" if den else f"n/a ({num}/{den})"
+
+
+def _table(header: Sequence[str], rows: Iterable[Sequence[object]]) -> list[str]:
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(str(c) for c in row) + " |" for row in rows]
+    return lines + [""]
+
+
+def _label(code: int) -> str:
+    return regimes.name(code).replace("_", " ")
+
+
+def _by_reason(counts: Mapping[int, int]) -> str:
+    """``not_converged (-1): 3, event_limit (-3): 1`` or ``0``."""
+    if not counts:
+        return "0"
+    return ", ".join(f"{regimes.name(c)} ({c}): {n}" for c, n in counts.items())
+
+
+def _fence(text: str, lang: str = "") -> list[str]:
+    fence = "~~~~" if "```" in text else "```"
+    return [fence + lang, text.rstrip("\n"), fence, ""]
+
+
+def _safe(name: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.-]", "_", name) or "scene"
+
+
+# --------------------------------------------------------------------------- sections
+def _summary(scores: Mapping[str, Mapping[str, Agreement]], kinds: Mapping[str, str]) -> list[str]:
+    methods = sorted({m for s in scores.values() for m in s}, key=("paper", "exact").index)
+    header = ["scene", "kind", "points", "determined", "not computed", "undetermined by reason"]
+    header += [f"accuracy {m}" for m in methods]
+    rows = []
+    for name, by_method in scores.items():
+        if not by_method:
+            rows.append([f"`{name}`", kinds[name], "", "", "", "no closed-form bounds"])
+            continue
+        a = next(iter(by_method.values()))
+        if a.kind == "trace":
+            n = a.numerical.r.size if a.numerical is not None else 0
+            row = [f"`{name}`", "trace", f"{n} r values", "n/a", "n/a", "n/a"]
+        else:
+            row = [f"`{name}`", a.kind, a.n_points, a.n_determined, a.n_not_computed]
+            n = a.n_undetermined
+            row.append(f"{n} ({_by_reason(a.undetermined_counts)})" if n else "0")
+        for m in methods:
+            b = by_method.get(m)
+            row.append("n/a" if b is None or b.kind == "trace" else _pct(b.n_correct, b.n_scored))
+        rows.append(row)
+    return ["## Summary", ""] + _table(header, rows)
+
+
+def _scene_header(name: str, ds: xr.Dataset) -> list[str]:
+    attrs = ds.attrs
+    lines = [f"## Scene `{name}`", ""]
+    if attrs.get("scene_label"):
+        lines += [f"{attrs['scene_label']}", ""]
+    facts = [
+        ("contact", attrs.get("contact")),
+        ("dof", attrs.get("dof")),
+        ("contact mass", attrs.get("contact_mass")),
+        ("mode", attrs.get("mode")),
+        ("layout", scene_kind(ds)),
+        ("sweeps", ", ".join(f"{d} ({ds.sizes[d]})" for d in sweep_dims(ds)) or "none"),
+        ("scene", attrs.get("scene")),
+    ]
+    lines += [f"- {k}: `{v}`" for k, v in facts if v is not None and v != ""]
+    return lines + [""]
+
+
+def _confusion(a: Agreement) -> list[str]:
+    header = ["theory \\ simulation", *(_label(c) for c in REGIME_ORDER), "total"]
+    rows = []
+    for i, p in enumerate(REGIME_ORDER):
+        rows.append([_label(p), *(int(v) for v in a.confusion[i]), int(a.confusion[i].sum())])
+    rows.append(["total", *(int(v) for v in a.confusion.sum(axis=0)), a.n_scored])
+    lines = [f"**{a.method}** (rows: closed form, columns: simulation): "]
+    lines[0] += f"accuracy {_pct(a.n_correct, a.n_scored)}"
+    if a.n_unpredicted:
+        lines[0] += f"; {a.n_unpredicted} determined points without a prediction (NaN bound)"
+    return lines + [""] + _table(header, rows)
+
+
+def _per_regime(by_method: Mapping[str, Agreement]) -> list[str]:
+    header = [
+        "method",
+        "regime",
+        "by simulated regime (agree / simulated as)",
+        "by predicted regime (agree / predicted as)",
+    ]
+    rows = []
+    for m, a in by_method.items():
+        col, row = a.confusion.sum(axis=0), a.confusion.sum(axis=1)
+        for i, c in enumerate(REGIME_ORDER):
+            diag = int(a.confusion[i, i])
+            rows.append([m, _label(c), _pct(diag, int(col[i])), _pct(diag, int(row[i]))])
+    return ["### Per-regime accuracy", ""] + _table(header, rows)
+
+
+def _deviations(by_method: Mapping[str, Agreement]) -> list[str]:
+    header = [
+        "boundary",
+        "method",
+        "compared / columns",
+        "closed form inside bracket",
+        "max abs",
+        "median abs",
+        "max rel",
+        "median rel",
+    ]
+    rows = []
+    for m, a in by_method.items():
+        for name, d in a.deviations.items():
+            cons = d.n_consistent
+            rows.append(
+                [
+                    name,
+                    m,
+                    f"{d.n_compared} / {d.n_columns}",
+                    "n/a (traced)" if cons is None else f"{cons} / {d.n_columns}",
+                    _num(d.max_abs),
+                    _num(d.median_abs),
+                    _num(d.max_rel),
+                    _num(d.median_rel),
+                ]
+            )
+    if not rows:
+        return []
+    lines = ["### Boundary deviation (numerical - closed form)", ""]
+    lines += [
+        "Numerical boundary per r column: midpoint of the bracket between the last beta "
+        "of the bottom run of continuous points and the next determined beta "
+        "(continuous / stick-slip), and between the last moving beta and the first beta "
+        "of the top run of no-motion points (stick-slip / no motion). Columns with an open "
+        "bracket or an infinite closed form are not compared; relative = |deviation| / "
+        "|closed form|.",
+        "",
+    ]
+    lines += _table(header, rows)
+    a = next(iter(by_method.values()))
+    if a.numerical is not None and a.kind != "trace":
+        bad = a.numerical.non_monotone
+        r = a.numerical.r[bad]
+        shown = ", ".join(_num(float(x)) for x in r[:MAX_LISTED])
+        more = f" ... and {r.size - MAX_LISTED} more" if r.size > MAX_LISTED else ""
+        lines += [
+            f"- non-monotone columns: {int(bad.sum())} of {bad.size}"
+            + (f" (r = {shown}{more})" if r.size else ""),
+            f"- columns with skipped (undetermined or not computed) points: "
+            f"{int((a.numerical.n_skipped > 0).sum())}; brackets widened over them: "
+            f"continuous {int(a.numerical.skipped_in_bracket[:, 0].sum())}, "
+            f"motion {int(a.numerical.skipped_in_bracket[:, 1].sum())}",
+            "",
+        ]
+    return lines
+
+
+def _planes(by_method: Mapping[str, Agreement]) -> list[str]:
+    first = next(iter(by_method.values()))
+    if not first.planes:
+        return []
+    dims = list(first.planes[0][0])
+    header = [*dims, "points", "undetermined", "not computed"]
+    header += [f"accuracy {m}" for m in by_method]
+    rows = []
+    for k, (coords, plane) in enumerate(first.planes):
+        row = [_num(coords[d]) for d in dims]
+        if plane.kind == "trace":
+            row += [plane.numerical.r.size, "n/a", "n/a"]
+            row += ["n/a" for _ in by_method]
+        else:
+            row += [plane.n_points, plane.n_undetermined, plane.n_not_computed]
+            for a in by_method.values():
+                p = a.planes[k][1]
+                row.append(_pct(p.n_correct, p.n_scored))
+        rows.append(row)
+    return ["### Sweep planes", ""] + _table(header, rows)
+
+
+def _undetermined(a: Agreement) -> list[str]:
+    pts = a.undetermined
+    lines = ["### Undetermined points", ""]
+    if not len(pts):
+        return lines + ["None.", ""]
+    lines += [f"{len(pts)} point(s): {_by_reason(pts.counts())}.", ""]
+    names = list(pts.coords)
+    header = ["reason (code)", f"index ({', '.join(pts.dims)})", *names]
+    rows = [
+        [f"{row['reason']} ({row['code']})", str(row["index"]), *(_num(row[k]) for k in names)]
+        for row in pts.rows()[:MAX_LISTED]
+    ]
+    lines += _table(header, rows)
+    if len(pts) > MAX_LISTED:
+        lines += [f"... and {len(pts) - MAX_LISTED} more not listed (total {len(pts)}).", ""]
+    return lines
+
+
+def _scene_section(
+    name: str, ds: xr.Dataset, by_method: Mapping[str, Agreement], images: Sequence[Path]
+) -> list[str]:
+    lines = _scene_header(name, ds)
+    lines += [f"![{p.stem}]({p.name})" for p in images] + [""]
+    if not by_method:
+        return lines + ["No closed-form bounds in this scene: nothing scored.", ""]
+    first = next(iter(by_method.values()))
+    if first.kind != "trace":
+        lines += ["### Confusion matrices", ""]
+        for a in by_method.values():
+            lines += _confusion(a)
+        lines += _per_regime(by_method)
+    lines += _deviations(by_method)
+    lines += _planes(by_method)
+    if first.kind != "trace":
+        lines += _undetermined(first)
+    return lines
+
+
+def _provenance(attrs: Mapping[str, object], scenes: Mapping[str, xr.Dataset]) -> list[str]:
+    lines = ["## Provenance", ""]
+    lines += [f"- study: `{attrs.get('study_name', 'unknown')}`"]
+    if attrs.get("title"):
+        lines += [f"- title: {attrs['title']}"]
+    fid = sorted(
+        {str(ds.attrs.get("fidelity")) for ds in scenes.values() if "fidelity" in ds.attrs}
+    )
+    lines += [f"- fidelity: {', '.join(f'`{f}`' for f in fid) or 'unknown'}", ""]
+    settings = {str(ds.attrs["settings"]) for ds in scenes.values() if "settings" in ds.attrs}
+    lines += ["### Resolved settings", ""]
+    for text in sorted(settings) or ["{}"]:
+        try:
+            text = json.dumps(json.loads(text), indent=2, sort_keys=True)
+        except json.JSONDecodeError:
+            pass
+        lines += _fence(text, "json")
+    lines += ["### Package versions", ""]
+    try:
+        versions = json.loads(str(attrs.get("versions", "{}")))
+    except json.JSONDecodeError:
+        versions = {"versions": str(attrs.get("versions"))}
+    lines += _table(["package", "version"], sorted(versions.items())) if versions else ["n/a", ""]
+    lines += ["### History", ""] + _fence(str(attrs.get("history", "n/a")))
+    lines += ["### Study", ""] + _fence(str(attrs.get("study", "n/a")), "toml")
+    return lines
+
+
+# --------------------------------------------------------------------------- figures
+def _scene_figures(
+    name: str, ds: xr.Dataset, by_method: Mapping[str, Agreement], out_dir: Path
+) -> list[Path]:
+    stem = _safe(name)
+    paths = [figures.save_regime_map(ds, out_dir / f"{stem}_map.png")]
+    if by_method and any(a.deviations for a in by_method.values()):
+        title = f"{ds.attrs.get('scene_label') or name}: boundary deviation"
+        paths.append(
+            figures.save_deviation(by_method, out_dir / f"{stem}_deviation.png", title=title)
+        )
+    return paths
+
+
+# --------------------------------------------------------------------------- entry point
+def build_report(
+    result_path: str | os.PathLike, out_dir: str | os.PathLike
+) -> tuple[str, list[Path]]:
+    """Score every scene, write its figures into ``out_dir`` and return the markdown text.
+
+    Parameters
+    ----------
+    result_path : path-like
+        The netCDF4 result file.
+    out_dir : path-like
+        Existing folder for the PNG files.
+
+    Returns
+    -------
+    text : str
+        The markdown report.
+    images : list of pathlib.Path
+        The PNG files written.
+    """
+    out_dir = Path(out_dir)
+    scenes, attrs = open_result(result_path)
+    scores = {name: score_dataset(ds) for name, ds in scenes.items()}
+    kinds = {name: scene_kind(ds) for name, ds in scenes.items()}
+    stamp = datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ")
+    lines = [
+        f"# Report: study `{attrs.get('study_name', Path(result_path).stem)}`",
+        "",
+        f"Result file `{Path(result_path).name}`, {len(scenes)} scene(s); report written {stamp}.",
+        'Theory = closed-form boundaries ("paper": Marino & Cicirello 2021 with S = 1; '
+        '"exact": MODEL.md 4.3); predicted continuous for beta < beta_continuous, no motion '
+        "for beta >= beta_motion, stick-slip otherwise. Accuracy counts determined points only.",
+        "",
+    ]
+    lines += _summary(scores, kinds)
+    images: list[Path] = []
+    for name, ds in scenes.items():
+        paths = _scene_figures(name, ds, scores[name], out_dir)
+        images += paths
+        lines += _scene_section(name, ds, scores[name], paths)
+    lines += _provenance(attrs, scenes)
+    return "\n".join(lines), images
+
+
+def write_report(result_path: str | os.PathLike, out_dir: str | os.PathLike) -> Path:
+    """Write ``out_dir/report.md`` and its PNG figures for a result file.
+
+    Parameters
+    ----------
+    result_path : path-like
+        The netCDF4 result file (``study run`` output).
+    out_dir : path-like
+        Output folder, created if needed.
+
+    Returns
+    -------
+    pathlib.Path
+        The path of ``report.md``. Any earlier ``report.md`` in ``out_dir`` is
+        removed first; the new one is written to a temporary name and moved
+        into place only when complete.
+    """
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    target = out_dir / REPORT_NAME
+    target.unlink(missing_ok=True)  # a failed run must not leave an older report looking current
+    text, _ = build_report(result_path, out_dir)
+    tmp = out_dir / f".{REPORT_NAME}.{os.getpid()}.tmp"
+    try:
+        tmp.write_text(text, encoding="utf-8")
+        os.replace(tmp, target)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+    return target
