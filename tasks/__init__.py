@@ -11,6 +11,7 @@ from tasks.classifier import classify
 from tasks.fidelity import PRESETS, Settings, resolve
 from tasks.result import FIELDS, ClassifyResult
 from tasks.scene import Scene
+from tasks.trajectory import Trajectory, trajectory
 
 __all__ = [
     "FIELDS",
@@ -18,7 +19,9 @@ __all__ = [
     "ClassifyResult",
     "Scene",
     "Settings",
+    "Trajectory",
     "classify",
     "regimes",
     "resolve",
+    "trajectory",
 ]

@@ -16,12 +16,13 @@ _IC_CODES = {name: code for code, name in regimes.INITIAL_CONDITIONS.items()}
 
 
 @lru_cache(maxsize=64)
-def _modes(scene: Scene) -> SceneModes:
+def scene_modes_cached(scene: Scene) -> SceneModes:
+    """:func:`tasks.model.scene_modes`, computed once per scene."""
     return scene_modes(scene)
 
 
 def settings_args(settings: Settings) -> tuple:
-    """The solver settings in the order :func:`tasks.kernel.run_points` takes them."""
+    """The solver settings as the tuple the kernels take (:func:`tasks.kernel._context`)."""
     return (
         float(settings.event_tol),
         float(settings.step_fraction),
@@ -87,20 +88,30 @@ def classify(
     shape = r_arr.shape
     flat_r = np.ascontiguousarray(r_arr.ravel())
     flat_beta = np.ascontiguousarray(beta_arr.ravel())
-    out = kernel.run_points(
-        flat_r, flat_beta, *_modes(scene).kernel_args(), *settings_args(resolved)
+    out, _ = kernel.run_points(
+        flat_r, flat_beta, scene_modes_cached(scene).kernel_args(), settings_args(resolved)
     )
-    columns = {
-        "regime": kernel.OUT_REGIME,
-        "converged": kernel.OUT_CONVERGED,
-        "cycles": kernel.OUT_CYCLES,
-        "stops_per_cycle": kernel.OUT_STOPS,
-        "slip_amplitude": kernel.OUT_AMP,
-        "stick_fraction": kernel.OUT_STICK,
-        "period": kernel.OUT_PERIOD,
-        "initial_condition": kernel.OUT_IC,
-    }
-    arrays = {
-        name: out[:, col].astype(FIELDS[name][0]).reshape(shape) for name, col in columns.items()
-    }
-    return ClassifyResult(**arrays)
+    return result_from_kernel(out, shape)
+
+
+#: Column of :func:`tasks.kernel.run_points`'s output holding each result field.
+KERNEL_COLUMNS = {
+    "regime": kernel.OUT_REGIME,
+    "converged": kernel.OUT_CONVERGED,
+    "cycles": kernel.OUT_CYCLES,
+    "stops_per_cycle": kernel.OUT_STOPS,
+    "slip_amplitude": kernel.OUT_AMP,
+    "stick_fraction": kernel.OUT_STICK,
+    "period": kernel.OUT_PERIOD,
+    "initial_condition": kernel.OUT_IC,
+}
+
+
+def result_from_kernel(out: np.ndarray, shape: tuple[int, ...]) -> ClassifyResult:
+    """A :class:`ClassifyResult` of ``shape`` from the kernel's ``(n_points, N_OUT)`` output."""
+    return ClassifyResult(
+        **{
+            name: out[:, col].astype(FIELDS[name][0]).reshape(shape)
+            for name, col in KERNEL_COLUMNS.items()
+        }
+    )

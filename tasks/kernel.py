@@ -69,6 +69,10 @@ ST_STOPS, ST_REVERSALS, ST_STUCK_TIME, ST_DMIN, ST_DMAX, ST_FOREVER, ST_EVENTS, 
 N_STATS = 8
 STATUS_OK = 0.0
 
+# Event records (tasks.trajectory): kinds and columns of the record buffer.
+EV_SECTION, EV_STOP, EV_REVERSAL, EV_UNSTICK, EV_GRAZE, EV_END = 0.0, 1.0, 2.0, 3.0, 4.0, 5.0
+REC_TAU, REC_KIND, REC_MODE, REC_G, REC_X = range(5)
+
 # Fields of the per-point output array (see tasks.result.FIELDS).
 OUT_REGIME, OUT_CONVERGED, OUT_CYCLES, OUT_STOPS, OUT_AMP, OUT_STICK, OUT_PERIOD, OUT_IC = range(8)
 N_OUT = 8
@@ -188,42 +192,24 @@ def _stick_state(phi_s, T, w, d0, eta, etad, q, x, xd):
 
 
 @njit(cache=True)
-def run_cycle(
-    x,
-    xd,
-    mode,
-    stick_start,
-    stats,
-    seg_slip,
-    seg_stick,
-    sc,
-    beta,
-    p,
-    K,
-    b,
-    w,
-    T,
-    phi,
-    phi_t_gamma,
-    phi_s,
-    phi_s_t_gamma_s,
-    proj,
-    f_r2,
-    dstat_r2,
-    g_load,
-    g_cos,
-    g_d0,
-    h_slip,
-    h_stick,
-    tol,
-    stick_min,
-    max_events,
-    eta,
-    etad,
-    eta_s,
-    etad_s,
-    q,
-):
+def _record(rec, rec_n, tau, kind, mode, g, x, xd):
+    """Append one event to the record buffer (if there is room)."""
+    k = rec_n[0]
+    if k >= rec.shape[0]:
+        return
+    n = x.shape[0]
+    rec[k, REC_TAU] = tau
+    rec[k, REC_KIND] = kind
+    rec[k, REC_MODE] = mode
+    rec[k, REC_G] = g
+    for i in range(n):
+        rec[k, REC_X + i] = x[i]
+        rec[k, REC_X + n + i] = xd[i]
+    rec_n[0] = k + 1
+
+
+@njit(cache=True)
+def run_cycle(x, xd, mode, stick_start, stats, ctx, work, rec, rec_n):
     """Advance ``(x, x', mode)`` over one excitation period ``0 <= tau <= 2 pi``.
 
     ``mode`` is +1 / -1 (sliding with that sign) or 0 (stuck). ``stick_start``
@@ -233,104 +219,11 @@ def run_cycle(
     contact displacement ``b . x``, whether the contact provably stays stuck for
     ever, events, status). Returns ``(mode, stick_start)`` for the next cycle
     (``stick_start`` shifted by -2 pi).
+
+    If ``rec`` has rows, every phase boundary is appended to it (``rec_n[0]``
+    counts them): the cycle start, each event with the state at the event and
+    the phase that follows it, and the cycle end (columns ``REC_*``).
     """
-    for i in range(N_STATS):
-        stats[i] = 0.0
-    d = _dot(b, x)
-    stats[ST_DMIN] = d
-    stats[ST_DMAX] = d
-    tau = 0.0
-    v0 = _dot(b, xd)
-    events = 0
-    while True:
-        remaining = TWO_PI - tau
-        if mode == 0:
-            d0 = _start_stick(
-                seg_stick,
-                sc,
-                x,
-                xd,
-                tau,
-                beta,
-                b,
-                w,
-                proj,
-                phi_s_t_gamma_s,
-                dstat_r2,
-                g_cos,
-                g_d0,
-                q,
-            )
-            if never_unsticks(seg_stick, sc):
-                stats[ST_FOREVER] = 1.0
-                t, found = remaining, False
-            else:
-                t, found = next_event(seg_stick, sc, remaining, h_stick, tol, eta_s, etad_s)
-            g, dg = evaluate(seg_stick, sc, t, eta_s, etad_s)
-            _stick_state(phi_s, T, w, d0, eta_s, etad_s, q, x, xd)
-            stats[ST_STUCK_TIME] += t
-            if not found:
-                break
-            if tau + t - stick_start > stick_min:
-                stats[ST_STOPS] += 1.0
-            mode = 1 if g > 0.0 else -1
-            v0 = 0.0
-        else:
-            s = float(mode)
-            _start_slip(seg_slip, sc, x, xd, tau, s, v0, beta, f_r2, phi_t_gamma)
-            t, found = next_event(seg_slip, sc, remaining, h_slip, tol, eta, etad)
-            evaluate(seg_slip, sc, t, eta, etad)
-            _slip_state(phi, eta, etad, x, xd)
-            d = _dot(b, x)
-            if d < stats[ST_DMIN]:
-                stats[ST_DMIN] = d
-            if d > stats[ST_DMAX]:
-                stats[ST_DMAX] = d
-            if not found:
-                break
-            g = _contact_force(p, math.cos(tau + t), K, x, g_load)
-            if abs(g) <= beta:
-                mode = 0
-                stick_start = tau + t
-            elif (g > 0.0) != (s > 0.0):
-                mode = -mode
-                stats[ST_REVERSALS] += 1.0
-            v0 = 0.0
-        tau += t
-        events += 1
-        if events > max_events:
-            stats[ST_STATUS] = EVENT_LIMIT
-            break
-    stats[ST_EVENTS] = events
-    for i in range(x.shape[0]):
-        if not (math.isfinite(x[i]) and math.isfinite(xd[i])):
-            stats[ST_STATUS] = NUMERICAL_FAILURE
-    return mode, stick_start - TWO_PI
-
-
-@njit(cache=True)
-def _max_abs(v):
-    acc = 0.0
-    for i in range(v.shape[0]):
-        a = abs(v[i])
-        if a > acc:
-            acc = a
-    return acc
-
-
-@njit(cache=True)
-def _max_abs_diff(a, b):
-    acc = 0.0
-    for i in range(a.shape[0]):
-        d = abs(a[i] - b[i])
-        if d > acc:
-            acc = d
-    return acc
-
-
-@njit(cache=True)
-def _cycle(X, mode, stick_start, stats, ctx, work):
-    """One period from the section state ``X = (x, x')``; returns the new state."""
     (
         seg_slip,
         seg_stick,
@@ -358,45 +251,117 @@ def _cycle(X, mode, stick_start, stats, ctx, work):
         max_events,
     ) = ctx
     eta, etad, eta_s, etad_s, q = work
+    for i in range(N_STATS):
+        stats[i] = 0.0
+    d = _dot(b, x)
+    stats[ST_DMIN] = d
+    stats[ST_DMAX] = d
+    tau = 0.0
+    v0 = _dot(b, xd)
+    events = 0
+    _record(rec, rec_n, 0.0, EV_SECTION, mode, _contact_force(p, 1.0, K, x, g_load), x, xd)
+    while True:
+        remaining = TWO_PI - tau
+        if mode == 0:
+            d0 = _start_stick(
+                seg_stick,
+                sc,
+                x,
+                xd,
+                tau,
+                beta,
+                b,
+                w,
+                proj,
+                phi_s_t_gamma_s,
+                dstat_r2,
+                g_cos,
+                g_d0,
+                q,
+            )
+            if never_unsticks(seg_stick, sc):
+                stats[ST_FOREVER] = 1.0
+                t, found = remaining, False
+            else:
+                t, found = next_event(seg_stick, sc, remaining, h_stick, tol, eta_s, etad_s)
+            g, _ = evaluate(seg_stick, sc, t, eta_s, etad_s)
+            _stick_state(phi_s, T, w, d0, eta_s, etad_s, q, x, xd)
+            stats[ST_STUCK_TIME] += t
+            if not found:
+                break
+            if tau + t - stick_start > stick_min:
+                stats[ST_STOPS] += 1.0
+            mode = 1 if g > 0.0 else -1
+            v0 = 0.0
+            kind = EV_UNSTICK
+        else:
+            s = float(mode)
+            _start_slip(seg_slip, sc, x, xd, tau, s, v0, beta, f_r2, phi_t_gamma)
+            t, found = next_event(seg_slip, sc, remaining, h_slip, tol, eta, etad)
+            evaluate(seg_slip, sc, t, eta, etad)
+            _slip_state(phi, eta, etad, x, xd)
+            d = _dot(b, x)
+            if d < stats[ST_DMIN]:
+                stats[ST_DMIN] = d
+            if d > stats[ST_DMAX]:
+                stats[ST_DMAX] = d
+            if not found:
+                break
+            g = _contact_force(p, math.cos(tau + t), K, x, g_load)
+            if abs(g) <= beta:
+                mode = 0
+                stick_start = tau + t
+                kind = EV_STOP
+            elif (g > 0.0) != (s > 0.0):
+                mode = -mode
+                stats[ST_REVERSALS] += 1.0
+                kind = EV_REVERSAL
+            else:
+                kind = EV_GRAZE
+            v0 = 0.0
+        tau += t
+        _record(rec, rec_n, tau, kind, mode, g, x, xd)
+        events += 1
+        if events > max_events:
+            stats[ST_STATUS] = EVENT_LIMIT
+            break
+    stats[ST_EVENTS] = events
+    for i in range(x.shape[0]):
+        if not (math.isfinite(x[i]) and math.isfinite(xd[i])):
+            stats[ST_STATUS] = NUMERICAL_FAILURE
+    _record(rec, rec_n, TWO_PI, EV_END, mode, _contact_force(p, 1.0, K, x, g_load), x, xd)
+    return mode, stick_start - TWO_PI
+
+
+@njit(cache=True)
+def _max_abs(v):
+    acc = 0.0
+    for i in range(v.shape[0]):
+        a = abs(v[i])
+        if a > acc:
+            acc = a
+    return acc
+
+
+@njit(cache=True)
+def _max_abs_diff(a, b):
+    acc = 0.0
+    for i in range(a.shape[0]):
+        d = abs(a[i] - b[i])
+        if d > acc:
+            acc = d
+    return acc
+
+
+@njit(cache=True)
+def _cycle(X, mode, stick_start, stats, ctx, work):
+    """One period from the section state ``X = (x, x')``; returns the new state."""
     n = X.shape[0] // 2
     x = X[:n].copy()
     xd = X[n:].copy()
-    mode, stick_start = run_cycle(
-        x,
-        xd,
-        mode,
-        stick_start,
-        stats,
-        seg_slip,
-        seg_stick,
-        sc,
-        beta,
-        p,
-        K,
-        b,
-        w,
-        T,
-        phi,
-        phi_t_gamma,
-        phi_s,
-        phi_s_t_gamma_s,
-        proj,
-        f_r2,
-        dstat_r2,
-        g_load,
-        g_cos,
-        g_d0,
-        h_slip,
-        h_stick,
-        tol,
-        stick_min,
-        max_events,
-        eta,
-        etad,
-        eta_s,
-        etad_s,
-        q,
-    )
+    no_record = np.zeros((0, 1))
+    no_count = np.zeros(1, dtype=np.int64)
+    mode, stick_start = run_cycle(x, xd, mode, stick_start, stats, ctx, work, no_record, no_count)
     out = np.empty(2 * n)
     out[:n] = x
     out[n:] = xd
@@ -513,8 +478,8 @@ def _shoot(X0, mode, stats, ctx, work, rtol, max_newton):
     Works in the coordinates of the phase the section falls in
     (:func:`_reduce`), with the Jacobian by forward differences (one period per
     column); the section must fall in the same kind of phase (stuck or
-    sliding) before and after the period. Returns ``(success, X, cycles_used)``; on success ``stats`` holds
-    the statistics of the verified period ``X -> P(X)``.
+    sliding) before and after the period. Returns ``(success, X, cycles_used)``;
+    on success ``stats`` holds the statistics of the verified period ``X -> P(X)``.
     """
     n = X0.shape[0] // 2
     b = ctx[6]
@@ -584,43 +549,41 @@ def _shoot(X0, mode, stats, ctx, work, rtol, max_newton):
 
 
 @njit(cache=True)
-def simulate_point(
-    r,
-    beta,
-    gamma,
-    K,
-    b,
-    p0,
-    load_scales_r2,
-    lam,
-    phi,
-    phi_t_gamma,
-    w_slip,
-    f_slip,
-    T,
-    w,
-    lam_s,
-    phi_s,
-    phi_s_t_gamma_s,
-    load_s,
-    d_static,
-    proj,
-    g_load,
-    g_modes_s,
-    g_d0,
-    event_tol,
-    step_fraction,
-    section_rtol,
-    max_cycles,
-    min_cycles,
-    shooting,
-    shooting_after,
-    max_events,
-    growth_factor,
-    initial_condition,
-    out,
-):
-    """Classify one (r, beta) point of a scene; writes the fields into ``out``."""
+def _context(r, beta, scene, settings):
+    """Per-point constants of both phases, the held initial condition and its phase.
+
+    ``scene`` is :meth:`tasks.model.SceneModes.kernel_args`, ``settings`` is
+    :func:`tasks.classifier.settings_args`. Returns ``(ctx, work, X0, mode0,
+    ic_used)``: ``ctx`` is the tuple :func:`run_cycle` takes, ``X0 = (x, x')``
+    the initial section state.
+    """
+    (
+        gamma,
+        K,
+        b,
+        p0,
+        load_scales_r2,
+        lam,
+        phi,
+        phi_t_gamma,
+        w_slip,
+        f_slip,
+        T,
+        w,
+        lam_s,
+        phi_s,
+        phi_s_t_gamma_s,
+        load_s,
+        d_static,
+        proj,
+        g_load,
+        g_modes_s,
+        g_d0,
+    ) = scene
+    event_tol = settings[0]
+    step_fraction = settings[1]
+    max_events = settings[7]
+    initial_condition = settings[9]
     n = gamma.shape[0]
     m = lam_s.shape[0]
     r2 = r * r
@@ -649,31 +612,36 @@ def simulate_point(
         seg_stick[ALPHA, k] = -g_modes_s[k]
         om_max = max(om_max, om)
     h_stick = step_fraction * math.pi / om_max
-    f_r2 = f_slip / r2
-    dstat_r2 = d_static / r2
-    g_cos = _dot(g_load, p)
+    ctx = (
+        seg_slip,
+        seg_stick,
+        np.zeros(N_SCALARS),
+        beta,
+        p,
+        K,
+        b,
+        w,
+        T,
+        phi,
+        phi_t_gamma,
+        phi_s,
+        phi_s_t_gamma_s,
+        proj,
+        f_slip / r2,
+        d_static / r2,
+        g_load,
+        _dot(g_load, p),
+        g_d0,
+        h_slip,
+        h_stick,
+        event_tol,
+        1e3 * event_tol,
+        max_events,
+    )
+    work = (np.zeros(n), np.zeros(n), np.zeros(m), np.zeros(m), np.zeros(2 * m))
+    # Held start: contact at d0 = 0, the rest on the forced response of the
+    # held system at tau = 0 (from rest if the held system is resonant).
     ic_used = initial_condition
-
-    if beta == 0.0:  # undamped linear system: continuous by definition
-        amp = 0.0
-        for k in range(n):
-            den = seg_slip[OMEGA, k] ** 2 - 1.0
-            if den == 0.0:
-                amp = np.inf
-                break
-            amp += seg_slip[DELTA, k] * seg_slip[LOAD_COS, k] / den
-        out[OUT_REGIME] = CONTINUOUS
-        out[OUT_CONVERGED] = 1.0
-        out[OUT_CYCLES] = 0.0
-        out[OUT_STOPS] = 0.0
-        out[OUT_AMP] = abs(amp)
-        out[OUT_STICK] = 0.0
-        out[OUT_PERIOD] = 1.0
-        out[OUT_IC] = ic_used
-        return
-
-    # Initial condition: contact held at d0 = 0, the rest on the forced
-    # response of the held system at tau = 0 (or rest, if that is resonant).
     X = np.zeros(2 * n)
     if initial_condition == IC_HELD:
         zeta = np.zeros(m)
@@ -692,41 +660,75 @@ def simulate_point(
                     X[j] += T[j, i] * qi
     g0 = _contact_force(p, 1.0, K, X[:n], g_load)
     mode = 0 if abs(g0) <= beta else (1 if g0 > 0.0 else -1)
+    return ctx, work, X, mode, ic_used
 
-    tol = event_tol
-    stick_min = 1e3 * event_tol
-    ctx = (
-        seg_slip,
-        seg_stick,
-        np.zeros(N_SCALARS),
-        beta,
-        p,
-        K,
-        b,
-        w,
-        T,
-        phi,
-        phi_t_gamma,
-        phi_s,
-        phi_s_t_gamma_s,
-        proj,
-        f_r2,
-        dstat_r2,
-        g_load,
-        g_cos,
-        g_d0,
-        h_slip,
-        h_stick,
-        tol,
-        stick_min,
-        max_events,
-    )
-    work = (np.zeros(n), np.zeros(n), np.zeros(m), np.zeros(m), np.zeros(2 * m))
+
+@njit(cache=True)
+def start_phase(X, beta, ctx):
+    """Phase a section state starts in: sliding with the sign of ``b . x'``, or
+    (at rest relative to the contact) stuck if ``|g| <= beta``."""
+    p = ctx[4]
+    K = ctx[5]
+    b = ctx[6]
+    g_load = ctx[16]
+    n = X.shape[0] // 2
+    v = _dot(b, X[n:])
+    if v > 0.0:
+        return 1
+    if v < 0.0:
+        return -1
+    g0 = _contact_force(p, 1.0, K, X[:n], g_load)
+    return 0 if abs(g0) <= beta else (1 if g0 > 0.0 else -1)
+
+
+@njit(cache=True)
+def _linear_amplitude(seg_slip):
+    """Amplitude of ``b . x`` on the forced response of the sliding system without
+    friction: ``|b . (K - M)^-1 p|`` (inf at a resonance)."""
+    amp = 0.0
+    for k in range(seg_slip.shape[1]):
+        den = seg_slip[OMEGA, k] ** 2 - 1.0
+        if den == 0.0:
+            return np.inf
+        amp += seg_slip[DELTA, k] * seg_slip[LOAD_COS, k] / den
+    return abs(amp)
+
+
+@njit(cache=True)
+def simulate_point(r, beta, scene, settings, out, final):
+    """Classify one (r, beta) point; writes the fields into ``out`` and the last
+    section state and phase ``(x, x', mode)`` into ``final``."""
+    (
+        _event_tol,
+        _step_fraction,
+        section_rtol,
+        max_cycles,
+        min_cycles,
+        shooting,
+        shooting_after,
+        _max_events,
+        growth_factor,
+        _initial_condition,
+    ) = settings
+    ctx, work, X, mode, ic_used = _context(r, beta, scene, settings)
+    n = X.shape[0] // 2
+    final[: 2 * n] = X
+    final[2 * n] = mode
+    if beta == 0.0:  # undamped linear system: continuous by definition
+        out[OUT_REGIME] = CONTINUOUS
+        out[OUT_CONVERGED] = 1.0
+        out[OUT_CYCLES] = 0.0
+        out[OUT_STOPS] = 0.0
+        out[OUT_AMP] = _linear_amplitude(ctx[0])
+        out[OUT_STICK] = 0.0
+        out[OUT_PERIOD] = 1.0
+        out[OUT_IC] = ic_used
+        return
     stats = np.zeros(N_STATS)
     stats_prev = np.zeros(N_STATS)
     X_prev = X.copy()
     mode_prev = mode
-    mode_prev2 = -9
+    mode_prev2 = mode
     X_prev2 = X.copy()
     diff_prev = np.inf
     ref = max(_max_abs(X), 1e-300)
@@ -738,11 +740,15 @@ def simulate_point(
     while cycles < max_cycles:
         X_new, mode_new, stick_start = _cycle(X, mode, stick_start, stats, ctx, work)
         cycles += 1
+        final[: 2 * n] = X_new
+        final[2 * n] = mode_new
         status = stats[ST_STATUS]
         if status != STATUS_OK:
             _undetermined(out, status, cycles, ic_used)
             return
         if stats[ST_FOREVER] > 0.0:  # stuck for ever: no motion
+            final[: 2 * n] = X
+            final[2 * n] = mode
             stats[ST_EVENTS] = 0.0
             stats[ST_STUCK_TIME] = TWO_PI
             stats[ST_STOPS] = 0.0
@@ -765,11 +771,15 @@ def simulate_point(
             rho = diff / diff_prev if diff_prev > 0.0 else 0.0
             err = diff / (1.0 - min(rho, 0.999))
             if err <= section_rtol * scale or diff <= 1e-13 * scale:
+                final[: 2 * n] = X_prev
+                final[2 * n] = mode_prev
                 _finish(out, stats, stats_prev, 1, cycles, ic_used)
                 return
         if cycles >= min_cycles + 1 and _same_chart(mode, mode_prev2):
             diff2 = _max_abs_diff(X, X_prev2)
             if diff2 <= section_rtol * scale and diff > 10.0 * section_rtol * scale:
+                final[: 2 * n] = X_prev2
+                final[2 * n] = mode_prev2
                 _finish(out, stats, stats_prev, 2, cycles, ic_used)
                 return
         # linear growth (resonance without enough friction): increments repeat
@@ -788,6 +798,8 @@ def simulate_point(
             ok, Xs, used = _shoot(X, mode, stats, ctx, work, section_rtol, 8)
             cycles += used
             if ok:
+                final[: 2 * n] = Xs
+                final[2 * n] = start_phase(Xs, ctx[3], ctx) if mode != 0 else 0
                 _finish(out, stats, stats_prev, 1, cycles, ic_used)
                 return
             shots_failed += 1
@@ -795,78 +807,48 @@ def simulate_point(
 
 
 @njit(cache=True)
-def run_points(
-    r,
-    beta,
-    gamma,
-    K,
-    b,
-    p0,
-    load_scales_r2,
-    lam,
-    phi,
-    phi_t_gamma,
-    w_slip,
-    f_slip,
-    T,
-    w,
-    lam_s,
-    phi_s,
-    phi_s_t_gamma_s,
-    load_s,
-    d_static,
-    proj,
-    g_load,
-    g_modes_s,
-    g_d0,
-    event_tol,
-    step_fraction,
-    section_rtol,
-    max_cycles,
-    min_cycles,
-    shooting,
-    shooting_after,
-    max_events,
-    growth_factor,
-    initial_condition,
-):
-    """Classify every point ``(r[i], beta[i])``; returns an (n_points, N_OUT) array."""
+def run_points(r, beta, scene, settings):
+    """Classify every point ``(r[i], beta[i])``.
+
+    Returns ``(out, final)``: ``out`` is ``(n_points, N_OUT)`` (columns
+    ``OUT_*``), ``final`` the last section state and phase of each point.
+    """
+    n = scene[0].shape[0]
     out = np.empty((r.shape[0], N_OUT))
+    final = np.empty((r.shape[0], 2 * n + 1))
     for i in range(r.shape[0]):
-        simulate_point(
-            r[i],
-            beta[i],
-            gamma,
-            K,
-            b,
-            p0,
-            load_scales_r2,
-            lam,
-            phi,
-            phi_t_gamma,
-            w_slip,
-            f_slip,
-            T,
-            w,
-            lam_s,
-            phi_s,
-            phi_s_t_gamma_s,
-            load_s,
-            d_static,
-            proj,
-            g_load,
-            g_modes_s,
-            g_d0,
-            event_tol,
-            step_fraction,
-            section_rtol,
-            max_cycles,
-            min_cycles,
-            shooting,
-            shooting_after,
-            max_events,
-            growth_factor,
-            initial_condition,
-            out[i],
-        )
-    return out
+        simulate_point(r[i], beta[i], scene, settings, out[i], final[i])
+    return out, final
+
+
+@njit(cache=True)
+def trace_cycles(r, beta, scene, settings, X0, mode0, n_cycles, max_records):
+    """Simulate ``n_cycles`` periods from ``(X0, mode0)`` and record every event.
+
+    ``mode0`` < -1 means: use the held initial condition of :func:`_context`.
+    Returns ``(records, n_records, X, mode, status)``.
+    """
+    ctx, work, Xh, mode_h, ic_used = _context(r, beta, scene, settings)
+    if mode0 < -1:
+        X = Xh
+        mode = mode_h
+    else:
+        X = X0.copy()
+        mode = mode0
+    n = X.shape[0] // 2
+    rec = np.zeros((max_records, REC_X + 2 * n))
+    rec_n = np.zeros(1, dtype=np.int64)
+    stats = np.zeros(N_STATS)
+    x = X[:n].copy()
+    xd = X[n:].copy()
+    stick_start = 0.0
+    status = STATUS_OK
+    for _ in range(n_cycles):
+        mode, stick_start = run_cycle(x, xd, mode, stick_start, stats, ctx, work, rec, rec_n)
+        if stats[ST_STATUS] != STATUS_OK:
+            status = stats[ST_STATUS]
+            break
+    out = np.empty(2 * n)
+    out[:n] = x
+    out[n:] = xd
+    return rec, rec_n[0], out, mode, status

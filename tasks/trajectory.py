@@ -1,0 +1,226 @@
+"""Event-by-event trajectories: what happened at every event, and the state at any time.
+
+:func:`classify` answers "which regime?"; :func:`trajectory` shows the motion
+behind the answer: the times and kinds of every event (stop, reversal,
+unstick), the state there, and (:meth:`Trajectory.sample`) the exact state at
+any time, from the same closed-form phases the classifier uses.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from tasks import kernel
+from tasks.classifier import result_from_kernel, scene_modes_cached, settings_args
+from tasks.fidelity import resolve
+from tasks.propagate import evaluate
+from tasks.result import ClassifyResult
+from tasks.scene import Scene
+
+#: Names of the event kinds in :attr:`Trajectory.kind`.
+EVENT_KINDS: dict[int, str] = {
+    int(kernel.EV_SECTION): "section",
+    int(kernel.EV_STOP): "stop",
+    int(kernel.EV_REVERSAL): "reversal",
+    int(kernel.EV_UNSTICK): "unstick",
+    int(kernel.EV_GRAZE): "graze",
+    int(kernel.EV_END): "end",
+}
+
+
+@njit(cache=True)
+def _sample(ctx, work, rec, taus):
+    """States ``(x, x')`` at the absolute times ``taus`` (ascending) from the records."""
+    n = (rec.shape[1] - kernel.REC_X) // 2
+    beta = ctx[3]
+    out = np.empty((taus.shape[0], 2 * n))
+    x = np.empty(n)
+    xd = np.empty(n)
+    j = 0
+    for i in range(taus.shape[0]):
+        tau = taus[i]
+        while j + 1 < rec.shape[0] - 1 and rec[j + 1, kernel.REC_TAU] <= tau:
+            j += 1
+        tau0 = rec[j, kernel.REC_TAU]
+        mode = int(rec[j, kernel.REC_MODE])
+        for k in range(n):
+            x[k] = rec[j, kernel.REC_X + k]
+            xd[k] = rec[j, kernel.REC_X + n + k]
+        eta, etad, eta_s, etad_s, q = work
+        if mode == 0:
+            seg = ctx[1]
+            d0 = kernel._start_stick(
+                seg,
+                ctx[2],
+                x,
+                xd,
+                tau0,
+                beta,
+                ctx[6],
+                ctx[7],
+                ctx[13],
+                ctx[12],
+                ctx[15],
+                ctx[17],
+                ctx[18],
+                q,
+            )
+            evaluate(seg, ctx[2], tau - tau0, eta_s, etad_s)
+            kernel._stick_state(ctx[11], ctx[8], ctx[7], d0, eta_s, etad_s, q, x, xd)
+        else:
+            seg = ctx[0]
+            kernel._start_slip(seg, ctx[2], x, xd, tau0, float(mode), 0.0, beta, ctx[14], ctx[10])
+            evaluate(seg, ctx[2], tau - tau0, eta, etad)
+            kernel._slip_state(ctx[9], eta, etad, x, xd)
+        out[i, :n] = x
+        out[i, n:] = xd
+    return out
+
+
+@dataclass
+class Trajectory:
+    """Events of a simulated stretch of motion (scene coordinates, MODEL.md 2).
+
+    Attributes
+    ----------
+    tau : ndarray
+        Event times (``tau = 0`` is the start; one cycle is ``2 pi``). The first
+        row of every cycle is its start (``"section"``), the last its end.
+    kind : ndarray of int
+        Event kinds, names in :data:`EVENT_KINDS`.
+    mode : ndarray of int
+        Phase after the event: +1 / -1 sliding with that sign of ``b . x'``, 0 stuck.
+    g : ndarray
+        Force the contact must transmit at the event (``|g| <= beta`` sticks).
+    x, xd : ndarray, shape (n_events, N)
+        State at the event (before any projection onto the stuck phase).
+    status : int
+        0, or the undetermined code of :mod:`tasks.regimes` that stopped the run.
+    result : ClassifyResult or None
+        The classification, when the trajectory starts from the steady state.
+    """
+
+    scene: Scene
+    r: float
+    beta: float
+    tau: np.ndarray
+    kind: np.ndarray
+    mode: np.ndarray
+    g: np.ndarray
+    x: np.ndarray
+    xd: np.ndarray
+    status: int
+    result: ClassifyResult | None
+    _records: np.ndarray
+    _ctx: tuple
+    _work: tuple
+
+    @property
+    def contact_displacement(self) -> np.ndarray:
+        """``b . x`` at every event (relative displacement of the contact)."""
+        return self.x @ self.scene.contact_vector()
+
+    @property
+    def contact_velocity(self) -> np.ndarray:
+        """``b . x'`` at every event."""
+        return self.xd @ self.scene.contact_vector()
+
+    def kinds(self, name: str) -> np.ndarray:
+        """Boolean mask of the events of one kind, e.g. ``kinds("stop")``."""
+        code = {v: k for k, v in EVENT_KINDS.items()}[name]
+        return self.kind == code
+
+    def sample(self, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Exact state ``(x, x')`` at times ``tau`` within the trajectory (closed form)."""
+        tau = np.asarray(tau, dtype=float)
+        order = np.argsort(tau.ravel())
+        flat = np.ascontiguousarray(tau.ravel()[order])
+        if flat.size and (flat[0] < self.tau[0] or flat[-1] > self.tau[-1]):
+            raise ValueError("tau: outside the simulated stretch")
+        states = _sample(self._ctx, self._work, self._records, flat)
+        back = np.empty_like(states)
+        back[order] = states
+        n = self.scene.dof
+        shape = (*tau.shape, n)
+        return back[:, :n].reshape(shape), back[:, n:].reshape(shape)
+
+
+def trajectory(
+    scene: Scene,
+    r: float,
+    beta: float,
+    cycles: int | None = None,
+    start: str | tuple[np.ndarray, np.ndarray] = "steady",
+    fidelity: str = "balanced",
+    max_records: int = 100_000,
+    **settings: object,
+) -> Trajectory:
+    """Simulate ``cycles`` excitation periods of one point and record every event.
+
+    Parameters
+    ----------
+    scene, r, beta
+        As in :func:`tasks.classify` (scalars).
+    cycles : int, optional
+        Periods to record; default: the steady-state period (1 or 2) for
+        ``start="steady"``, else 1.
+    start : "steady", "held" or (x, x')
+        ``"steady"``: classify the point first and record from its converged
+        section state; ``"held"``: the classifier's initial condition;
+        ``(x, x')``: any state at ``tau = 0`` (the phase follows from ``b . x'``
+        and, at zero contact velocity, from ``|g| <= beta``).
+    """
+    resolved = resolve(fidelity, **settings)
+    args = settings_args(resolved)
+    scene_args = scene_modes_cached(scene).kernel_args()
+    r = float(r)
+    beta = float(beta)
+    n = scene.dof
+    result = None
+    if isinstance(start, str) and start == "steady":
+        out, final = kernel.run_points(np.array([r]), np.array([beta]), scene_args, args)
+        result = result_from_kernel(out, ())
+        X0 = final[0, : 2 * n].copy()
+        mode0 = int(final[0, 2 * n])
+        if cycles is None:
+            cycles = max(1, int(result.period))
+    elif isinstance(start, str) and start == "held":
+        X0, mode0 = np.zeros(2 * n), -9
+    elif isinstance(start, str):
+        raise ValueError(f"start: must be 'steady', 'held' or (x, xd), got {start!r}")
+    else:
+        x0, xd0 = (np.asarray(v, dtype=float).reshape(n) for v in start)
+        X0 = np.concatenate([x0, xd0])
+        ctx = kernel._context(r, beta, scene_args, args)[0]
+        mode0 = int(kernel.start_phase(X0, beta, ctx))
+    cycles = 1 if cycles is None else int(cycles)
+    rec, n_rec, _, _, status = kernel.trace_cycles(
+        r, beta, scene_args, args, X0, mode0, cycles, max_records
+    )
+    rec = rec[:n_rec].copy()
+    # absolute times: every cycle restarts at tau = 0
+    starts = np.flatnonzero(rec[:, kernel.REC_KIND] == kernel.EV_SECTION)
+    for k, i0 in enumerate(starts):
+        i1 = starts[k + 1] if k + 1 < len(starts) else n_rec
+        rec[i0:i1, kernel.REC_TAU] += 2.0 * np.pi * k
+    ctx, work = kernel._context(r, beta, scene_args, args)[:2]
+    x = rec[:, kernel.REC_X : kernel.REC_X + n]
+    return Trajectory(
+        scene=scene,
+        r=r,
+        beta=beta,
+        tau=rec[:, kernel.REC_TAU].copy(),
+        kind=rec[:, kernel.REC_KIND].astype(int),
+        mode=rec[:, kernel.REC_MODE].astype(int),
+        g=rec[:, kernel.REC_G].copy(),
+        x=x.copy(),
+        xd=rec[:, kernel.REC_X + n :].copy(),
+        status=int(status),
+        result=result,
+        _records=np.ascontiguousarray(rec),
+        _ctx=ctx,
+        _work=work,
+    )
