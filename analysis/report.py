@@ -49,7 +49,9 @@ def open_result(path: str | os.PathLike) -> tuple[dict[str, xr.Dataset], dict[st
     Returns
     -------
     scenes : dict of str to xarray.Dataset
-        Scene name -> Dataset (a root scene keeps the global attributes too).
+        Scene name -> Dataset with the variables the report reads (``regime``
+        and the ``beta_*`` boundaries) in memory; a root scene keeps the global
+        attributes too.
     attrs : dict
         Global attributes (``study``, ``study_name``, ``history``, ``versions``, ...).
     """
@@ -57,17 +59,24 @@ def open_result(path: str | os.PathLike) -> tuple[dict[str, xr.Dataset], dict[st
         grouped = bool(nc.groups)
     if not grouped:
         with xr.open_dataset(path, engine="netcdf4") as ds:
-            ds = ds.load()
+            ds = _needed(ds).load()
         name = str(ds.attrs.get("scene_name") or Path(path).stem)
         return {name: ds}, dict(ds.attrs)
     tree = xr.open_datatree(path, engine="netcdf4")
     try:
         scenes = {
-            str(name): node.to_dataset(inherit=False).load() for name, node in tree.children.items()
+            str(name): _needed(node.to_dataset(inherit=False)).load()
+            for name, node in tree.children.items()
         }
         return scenes, dict(tree.attrs)
     finally:
         tree.close()
+
+
+def _needed(ds: xr.Dataset) -> xr.Dataset:
+    """The variables the report reads (regime and boundaries), attributes kept."""
+    keep = [v for v in ds.data_vars if v == "regime" or str(v).startswith("beta_")]
+    return ds[keep].assign_attrs(ds.attrs)
 
 
 # --------------------------------------------------------------------------- formatting
