@@ -525,6 +525,10 @@ def _shoot(X0, mode, stats, ctx, work, rtol, max_newton):
             return False, X0, cycles
         if not np.all(np.isfinite(step)):
             return False, X0, cycles
+        # trust region: a fixed point far beyond the current motion is not a
+        # settled transient but a (near-)singular map, e.g. resonant growth
+        if _max_abs(step) > 10.0 * scale:
+            return False, X0, cycles
         lam = 1.0
         accepted = False
         for _ls in range(5):
@@ -647,6 +651,8 @@ def _context(r, beta, scene, settings):
         zeta = np.zeros(m)
         for k in range(m):
             den = seg_stick[OMEGA, k] ** 2 - 1.0
+            if seg_stick[LOAD_COS, k] == 0.0:
+                continue  # mode not loaded: no forced response
             if abs(den) < 1e-9 * max(seg_stick[OMEGA, k] ** 2, 1.0):
                 ic_used = IC_REST
                 break
