@@ -135,12 +135,20 @@ class Axis:
         return len(self.values) if self.values is not None else int(self.num)
 
     def values_array(self) -> np.ndarray:
+        """The axis values; generated values are rounded to 15 significant digits.
+
+        ``linspace(0, 1.2, 25)`` gives ``0.9999999999999999`` where the user
+        wrote a grid of steps 0.05; rounding puts such values on the decimal
+        numbers meant (here exactly 1.0, which matters on a boundary such as
+        beta = 1, the motion bound of a ground contact on m_1).
+        """
         if self.values is not None:
             return np.asarray(self.values, dtype=np.float64)
         if self.num == 1:
             return np.array([self.start], dtype=np.float64)
         make = np.geomspace if self.spacing == "log" else np.linspace
-        return make(self.start, self.stop, self.num, dtype=np.float64)
+        raw = make(self.start, self.stop, self.num, dtype=np.float64)
+        return np.array([float(f"{v:.15g}") for v in raw], dtype=np.float64)
 
     def to_toml_value(self) -> dict[str, object]:
         if self.values is not None:

@@ -11,12 +11,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
 from tasks import kernel
 from tasks.classifier import result_from_kernel, scene_modes_cached, settings_args
 from tasks.fidelity import resolve
-from tasks.propagate import evaluate
 from tasks.result import ClassifyResult
 from tasks.scene import Scene
 
@@ -29,55 +27,6 @@ EVENT_KINDS: dict[int, str] = {
     int(kernel.EV_GRAZE): "graze",
     int(kernel.EV_END): "end",
 }
-
-
-@njit(cache=True)
-def _sample(ctx, work, rec, taus):
-    """States ``(x, x')`` at the absolute times ``taus`` (ascending) from the records."""
-    n = (rec.shape[1] - kernel.REC_X) // 2
-    beta = ctx[3]
-    out = np.empty((taus.shape[0], 2 * n))
-    x = np.empty(n)
-    xd = np.empty(n)
-    j = 0
-    for i in range(taus.shape[0]):
-        tau = taus[i]
-        while j + 1 < rec.shape[0] - 1 and rec[j + 1, kernel.REC_TAU] <= tau:
-            j += 1
-        tau0 = rec[j, kernel.REC_TAU]
-        mode = int(rec[j, kernel.REC_MODE])
-        for k in range(n):
-            x[k] = rec[j, kernel.REC_X + k]
-            xd[k] = rec[j, kernel.REC_X + n + k]
-        eta, etad, eta_s, etad_s, q = work
-        if mode == 0:
-            seg = ctx[1]
-            d0 = kernel._start_stick(
-                seg,
-                ctx[2],
-                x,
-                xd,
-                tau0,
-                beta,
-                ctx[6],
-                ctx[7],
-                ctx[13],
-                ctx[12],
-                ctx[15],
-                ctx[17],
-                ctx[18],
-                q,
-            )
-            evaluate(seg, ctx[2], tau - tau0, eta_s, etad_s)
-            kernel._stick_state(ctx[11], ctx[8], ctx[7], d0, eta_s, etad_s, q, x, xd)
-        else:
-            seg = ctx[0]
-            kernel._start_slip(seg, ctx[2], x, xd, tau0, float(mode), 0.0, beta, ctx[14], ctx[10])
-            evaluate(seg, ctx[2], tau - tau0, eta, etad)
-            kernel._slip_state(ctx[9], eta, etad, x, xd)
-        out[i, :n] = x
-        out[i, n:] = xd
-    return out
 
 
 @dataclass
@@ -140,7 +89,7 @@ class Trajectory:
         flat = np.ascontiguousarray(tau.ravel()[order])
         if flat.size and (flat[0] < self.tau[0] or flat[-1] > self.tau[-1]):
             raise ValueError("tau: outside the simulated stretch")
-        states = _sample(self._ctx, self._work, self._records, flat)
+        states = kernel.sample_states(self._ctx, self._work, self._records, flat)
         back = np.empty_like(states)
         back[order] = states
         n = self.scene.dof
