@@ -92,20 +92,23 @@ METHODS = ("paper", "exact")
 POINTS_PER_PERIOD = 16
 """Grid points per period of the fastest mode in the search for S."""
 MIN_GRID = 128
-"""Smallest uniform grid on (0, pi) in the search for S."""
-MAX_GRID = 1 << 14
-"""Largest uniform grid on (0, pi): with Omega_max > 2 MAX_GRID / POINTS_PER_PERIOD
-(very small r or very stiff/light elements) the fastest oscillations of the
-sup are not fully resolved in the middle of the half period (the ends are, by
-logarithmic grids), and S may be slightly underestimated there."""
+"""Smallest uniform grid on (0, pi/2) in the search for S."""
+MAX_GRID = 1 << 13
+"""Largest uniform grid on (0, pi/2): with Omega_max > 4 MAX_GRID / POINTS_PER_PERIOD
+= 2048 (r below about sqrt(lambda_max) / 2048: very small r or very stiff or
+light elements) the fastest oscillations are under-resolved (fewer than 16
+points per period, refined by golden-section search) and S may be slightly
+underestimated there; the time per r value stays bounded."""
 END_POINTS = 24
-"""Logarithmically spaced points added near tau = 0 and tau = pi."""
-CANDIDATES = 4
+"""Logarithmically spaced points added near tau = 0."""
+CANDIDATES = 6
 """Grid maxima refined by golden-section search."""
-GOLDEN_ITERATIONS = 44
-"""Golden-section steps (bracket shrinks by 0.618^44 ~ 6e-10)."""
+GOLDEN_ITERATIONS = 32
+"""Golden-section steps (bracket shrinks by 0.618^32 ~ 2e-7; the error of the
+maximum goes with its square)."""
 SNAP_ULPS = 4.0
 """r^2 within this many ulp of a held-system eigenvalue counts as its resonance."""
+_TAU_COS = 0.1  # from here on cos(tau) - cos(Om tau) is evaluated directly
 _CHUNK = 1 << 20  # elements of the (r, tau, mode) work arrays per block
 
 _EPS = np.finfo(float).eps
@@ -130,8 +133,8 @@ def _check_method(method: str) -> None:
 class _Terms:
     """Per-(r, mode) quantities, optionally scaled by ``scale`` (shape (n_r,)).
 
-    ``V, U, inv_m`` are ``scale`` times ``V_b, U_b, 1/m_b``; ``A, C`` are the
-    coefficients of ``scale * m_b h(tau)`` (see :func:`_ratio`).
+    ``V, U`` are ``scale`` times ``V_b, U_b``; ``A, C`` are the coefficients of
+    ``scale * m_b h(tau)`` (see :func:`_ratio`).
     """
 
     Om: np.ndarray
@@ -139,7 +142,6 @@ class _Terms:
     scale: np.ndarray
     V: np.ndarray
     U: np.ndarray
-    inv_m: np.ndarray
     A: np.ndarray
     C: np.ndarray
     odd_pole: np.ndarray  # (n_r,) an active Omega_i exactly an odd integer > 1 (unscaled only)
@@ -188,113 +190,140 @@ def _terms(modes: ContactModes, r: np.ndarray, scaled: bool) -> _Terms:
     r2 = (r * r)[:, None]
     # V_b = r^alpha sum cb p0 / (lambda_i - r^2); lambda_i - r^2 = r^2 delta (Omega + 1) if n = 1.
     cp = (modes.cb * modes.p0)[None, :]
-    v_terms = np.where(first, q / (Om + 1.0), scale[:, None] / (Om * Om - 1.0 + first)) / r2
+    v_far = scale[:, None] / np.where(first, 1.0, Om * Om - 1.0)
+    v_terms = np.where(first, q / (Om + 1.0), v_far) / r2
     V = r**modes.alpha * np.sum(cp * v_terms, axis=1)
     # U_b = sum (cb/r)^2 R_i t_i, t_i = g_i / delta_i.
     cb2 = (modes.cb**2)[None, :]
     U = np.sum(cb2 * g * q / Om, axis=1) / (r * r)
-    inv_m = scale * modes.b_gamma_b / (r * r)
     odd_pole = np.zeros(r.shape, dtype=bool)
     if not scaled:
         V = np.where(np.any(at_pole & first & (cp != 0.0), axis=1), np.inf, V)
         U = np.where(np.any(at_pole, axis=1), np.inf, U)
         odd_pole = np.any(at_pole & ~first, axis=1)
-    # m_b h(tau) = sum w_i R_i [sin(Om tau)
-    #              + 2 t_i (Om - 1) sin((Om+1) tau/2) sin((Om-1) tau/2) / (Om - 1)]
+    # m_b h(tau) = sum w_i R_i [sin(Om tau) + t_i (Om - 1) (cos tau - cos(Om tau)) / (Om - 1)],
+    # with t_i (Om - 1) = g_i for n = 1 (finite at the resonance) and g_i (Om - 1) / delta_i else.
     wR = modes.weights[None, :] / Om
     A = wR * scale[:, None]
     t_om1 = np.where(first, g * scale[:, None], g * q * (Om - 1.0))
-    C = 2.0 * wR * t_om1
+    C = wR * t_om1
     C = np.where(odd_pole[:, None], 0.0, C)
-    return _Terms(Om, active, scale, V, U, inv_m, A, C, odd_pole)
+    return _Terms(Om, active, scale, V, U, A, C, odd_pole)
 
 
 # ------------------------------------------------------------------- the sup for S
 def _ratio(tau: np.ndarray, Om: np.ndarray, A: np.ndarray, C: np.ndarray) -> np.ndarray:
     """``m_b h(tau) / sin(tau)`` (times the scale) for tau of shape (n_r, n_tau).
 
-    ``h`` of MODEL.md 4.3 is written without cancellation,
+    With ``h`` of MODEL.md 4.3 written as
     ``U cos tau + sum c_i^2 R_i [sin(Om tau) - t_i cos(Om tau)]
-    = sum c_i^2 R_i [sin(Om tau) + 2 t_i sin((Om+1) tau/2) sin((Om-1) tau/2)]``,
-    with ``sin(x (Om-1)) / (Om - 1) = x sinc(x (Om-1)/pi)`` so that the
-    resonance ``Om -> 1`` has its finite limit.
+    = sum c_i^2 R_i [sin(Om tau) + t_i (cos tau - cos(Om tau))]``,
+    ``A`` is the coefficient of ``sin(Om tau)`` and ``C`` that of
+    ``(cos tau - cos(Om tau)) / (Om - 1)``. The difference is evaluated without
+    cancellation as ``2 sin((Om+1) tau/2) sin((Om-1) tau/2)`` for small tau, and
+    for ``|Om - 1| < 1/4`` (all tau) the quotient as
+    ``tau sin((Om+1) tau/2) sinc((Om-1) tau/(2 pi))``, so that the resonance
+    ``Om -> 1`` has its finite limit.
     """
-    half = 0.5 * tau[:, :, None]
-    om = Om[:, None, :]
-    s1 = np.sin(tau[:, :, None] * om)
-    prod = np.sin(half * (om + 1.0)) * half * np.sinc(half * (om - 1.0) / np.pi)
-    num = np.einsum("rtm,rm->rt", s1, A) + np.einsum("rtm,rm->rt", prod, C)
-    return num / np.sin(tau)
+    ot = tau[:, :, None] * Om[:, None, :]
+    near = np.abs(Om - 1.0) < 0.25
+    om1 = np.where(near, 1.0, Om - 1.0)
+    far = np.all(tau >= _TAU_COS, axis=0)
+    diff = np.empty_like(ot)
+    if far.any():
+        diff[:, far] = np.cos(tau[:, far])[:, :, None] - np.cos(ot[:, far])
+    if not far.all():
+        half = 0.5 * tau[:, ~far, None]
+        diff[:, ~far] = 2.0 * np.sin(half * (Om + 1.0)[:, None, :])
+        diff[:, ~far] *= np.sin(half * (Om - 1.0)[:, None, :])
+    diff /= om1[:, None, :]
+    cols = np.flatnonzero(np.any(near, axis=0))
+    if cols.size:
+        half = 0.5 * tau[:, :, None]
+        om = Om[:, None, cols]
+        prod = 2.0 * np.sin(half * (om + 1.0)) * half * np.sinc(half * (om - 1.0) / np.pi)
+        diff[:, :, cols] = np.where(near[:, None, cols], prod, diff[:, :, cols])
+    num = np.matmul(np.sin(ot), A[:, :, None]) + np.matmul(diff, C[:, :, None])
+    return num[:, :, 0] / np.sin(tau)
 
 
 def _sup_ratio(Om: np.ndarray, A: np.ndarray, C: np.ndarray, active: np.ndarray) -> np.ndarray:
     """``sup over 0 < tau < pi`` of :func:`_ratio`, for each row (r value).
 
-    A uniform grid resolving the fastest mode the contact sees
-    (:data:`POINTS_PER_PERIOD`, between :data:`MIN_GRID` and :data:`MAX_GRID`
-    points) plus logarithmic grids towards both ends; the best grid maxima are
-    refined by golden-section search on their two neighbouring cells.
+    Every mode term of ``h`` is odd about the middle of the half period,
+    ``h(pi - tau) = -h(tau)`` (use ``sin(Om pi) - t cos(Om pi) = t`` and
+    ``cos(Om pi) + t sin(Om pi) = 1`` with ``t = tan(Om pi/2)``), so the sup over
+    (0, pi) is the sup of ``|ratio|`` over (0, pi/2]. It is searched on a uniform
+    grid resolving the fastest mode the contact sees (:data:`POINTS_PER_PERIOD`,
+    between :data:`MIN_GRID` and :data:`MAX_GRID` points) plus a logarithmic grid
+    towards tau = 0; the best grid maxima are refined by golden-section search on
+    their two neighbouring cells.
     """
     n_r = Om.shape[0]
     out = np.full(n_r, -np.inf)
     if n_r == 0:
         return out
-    om_max = np.max(np.where(active[None, :], Om, 0.0), axis=1)
-    want = np.ceil(0.5 * POINTS_PER_PERIOD * om_max)
+    used = active & (np.any(A != 0.0, axis=0) | np.any(C != 0.0, axis=0))
+    Om, A, C = Om[:, used], A[:, used], C[:, used]
+    if Om.shape[1] == 0:
+        return np.zeros(n_r)
+    om_max = np.max(Om, axis=1)
+    want = np.ceil(0.25 * POINTS_PER_PERIOD * om_max)  # om_max/4 periods in (0, pi/2)
     n_grid = np.clip(2 ** np.ceil(np.log2(np.maximum(want, 1.0))), MIN_GRID, MAX_GRID).astype(int)
+    k = min(CANDIDATES, MIN_GRID)
+    lo = np.zeros((n_r, k))
+    hi = np.zeros((n_r, k))
+    valid = np.zeros((n_r, k), dtype=bool)
     for n in np.unique(n_grid):
         rows = np.flatnonzero(n_grid == n)
-        per_row = (n + 2 * END_POINTS) * Om.shape[1]
+        per_row = (n + END_POINTS) * Om.shape[1]
         step = max(1, _CHUNK // per_row)
         for start in range(0, rows.size, step):
             idx = rows[start : start + step]
-            out[idx] = _sup_block(int(n), Om[idx], A[idx], C[idx], om_max[idx])
-    return out
+            out[idx], lo[idx], hi[idx], valid[idx] = _grid_block(
+                int(n), k, Om[idx], A[idx], C[idx], om_max[idx]
+            )
+    refined = np.where(valid, _golden_max(lo, hi, Om, A, C), -np.inf)
+    return np.maximum(out, np.max(refined, axis=1))
 
 
-def _sup_block(n: int, Om: np.ndarray, A: np.ndarray, C: np.ndarray, om_max: np.ndarray):
+def _grid_block(n: int, k: int, Om: np.ndarray, A: np.ndarray, C: np.ndarray, om_max: np.ndarray):
+    """Grid maximum of ``|ratio|`` and brackets of its ``k`` best local maxima (one grid size)."""
     n_r = Om.shape[0]
-    uni = np.pi * (np.arange(n) + 0.5) / n
+    uni = 0.5 * np.pi * (np.arange(n) + 0.5) / n
     first = uni[0]
     lo = np.minimum(0.5 * first, 1e-3 / np.maximum(om_max, 1.0))
     frac = np.linspace(0.0, 1.0, END_POINTS, endpoint=False)
     left = np.exp(np.log(lo)[:, None] + frac[None, :] * np.log(first / lo)[:, None])
-    right = np.pi - left[:, ::-1]
-    tau = np.concatenate([left, np.broadcast_to(uni, (n_r, n)), right], axis=1)
-    f = _ratio(tau, Om, A, C)
+    tau = np.concatenate([left, np.broadcast_to(uni, (n_r, n))], axis=1)
+    f = np.abs(_ratio(tau, Om, A, C))
     best = np.max(f, axis=1)
-    # local maxima of the grid, with the open ends tau = 0 and tau = pi as brackets
-    m = tau.shape[1]
-    pad = np.pad(f, ((0, 0), (1, 1)), constant_values=-np.inf)
+    # local maxima of the grid; brackets end at tau = 0 and at the mirror image
+    # pi - tau_last of the last point (|ratio| is symmetric about pi/2)
+    pad = np.concatenate([np.full((n_r, 1), -np.inf), f, f[:, -1:]], axis=1)
     is_max = (f >= pad[:, :-2]) & (f >= pad[:, 2:])
     score = np.where(is_max, f, -np.inf)
-    k = min(CANDIDATES, m)
     cand = np.argpartition(-score, k - 1, axis=1)[:, :k]
-    tpad = np.pad(tau, ((0, 0), (1, 1)))
-    tpad[:, -1] = np.pi
+    tpad = np.concatenate([np.zeros((n_r, 1)), tau, np.pi - tau[:, -1:]], axis=1)
     rows = np.arange(n_r)[:, None]
-    a = tpad[rows, cand]
-    b = tpad[rows, cand + 2]
     valid = np.isfinite(score[rows, cand])
-    refined = _golden_max(a, b, Om, A, C)
-    refined = np.where(valid, refined, -np.inf)
-    return np.maximum(best, np.max(refined, axis=1))
+    return best, tpad[rows, cand], tpad[rows, cand + 2], valid
 
 
 def _golden_max(a: np.ndarray, b: np.ndarray, Om: np.ndarray, A: np.ndarray, C: np.ndarray):
-    """Vectorised golden-section maximisation of :func:`_ratio` on brackets [a, b]."""
+    """Vectorised golden-section maximisation of ``|_ratio|`` on brackets [a, b]."""
     phi = 0.5 * (np.sqrt(5.0) - 1.0)
     c = b - phi * (b - a)
     d = a + phi * (b - a)
-    fc = _ratio(c, Om, A, C)
-    fd = _ratio(d, Om, A, C)
+    fc = np.abs(_ratio(c, Om, A, C))
+    fd = np.abs(_ratio(d, Om, A, C))
     best = np.maximum(fc, fd)
     for _ in range(GOLDEN_ITERATIONS):
         left = fc >= fd  # the maximum is in [a, d]
         a = np.where(left, a, c)
         b = np.where(left, d, b)
         new = np.where(left, b - phi * (b - a), a + phi * (b - a))
-        f_new = _ratio(new, Om, A, C)
+        f_new = np.abs(_ratio(new, Om, A, C))
         best = np.maximum(best, f_new)
         c, d = np.where(left, new, d), np.where(left, c, new)
         fc, fd = np.where(left, f_new, fd), np.where(left, fc, f_new)
