@@ -376,9 +376,17 @@ def generalised_S(scene: Scene, r: ArrayLike) -> np.ndarray:
                  + sum_i (b.psi_i)^2 R_i [sin(Omega_i tau) - tan(Omega_i pi/2) cos(Omega_i tau)],
 
     the friction-driven part of the contact velocity during a half period of the
-    antisymmetric continuous motion (reversal at tau = 0). ``m_b h / sin`` tends
-    to 1 as tau -> 0 (condition (b), the paper's S = 1) and to -1 as tau -> pi.
-    For one DOF (``b.psi = 1/r``, ``R = r``, ``m_b = r^2``) this is exactly Eq. 16.
+    antisymmetric continuous motion (reversal at tau = 0):
+    ``b.x'(tau) = -|V_b| sqrt(1 - beta^2 U_b^2 / V_b^2) sin(tau) + beta h(tau)``
+    (:func:`slip_velocity`). Condition (c), ``b.x' < 0`` on (0, pi), is monotone
+    in beta at every tau, so the admissible betas form an interval [0, beta*) with
+    ``beta* = sqrt(V_b^2 / (U_b^2 + (S/m_b)^2))``; condition (a) ``|beta U_b| <=
+    |V_b|`` then holds automatically. S does not depend on beta.
+
+    ``m_b h / sin`` tends to 1 as tau -> 0 (condition (b), the paper's S = 1) and
+    to -1 as tau -> pi; in fact ``h(pi - tau) = -h(tau)``, so the sup is that of
+    ``|m_b h / sin|`` over (0, pi/2]. For one DOF (``b.psi = 1/r``, ``R = r``,
+    ``m_b = r^2``) this is exactly Eq. 16.
 
     Parameters
     ----------
@@ -516,7 +524,8 @@ def predict(scene: Scene, r: ArrayLike, beta: ArrayLike, method: str = "paper") 
     ----------
     scene : tasks.scene.Scene
     r, beta : array_like
-        Frequency and friction ratios; broadcast against each other.
+        Frequency ratios (> 0) and friction ratios (>= 0); broadcast against
+        each other.
     method : {"paper", "exact"}
         See :func:`boundaries`.
 
@@ -529,6 +538,8 @@ def predict(scene: Scene, r: ArrayLike, beta: ArrayLike, method: str = "paper") 
     """
     r_arr = _as_r(r)
     beta_arr = np.asarray(beta, dtype=float)
+    if np.any(np.isnan(beta_arr)) or np.any(beta_arr < 0.0):
+        raise ValueError("beta: every friction ratio must be >= 0 (and not NaN)")
     shape = np.broadcast_shapes(r_arr.shape, beta_arr.shape)
     b_cont, b_motion = boundaries(scene, r_arr, method)
     b_cont = np.broadcast_to(b_cont, shape)

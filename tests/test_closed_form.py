@@ -389,11 +389,11 @@ def test_mass_contact_equivalent_system_quantities():
     np.testing.assert_allclose(m_b, G * r**2, rtol=1e-14)
 
 
-@pytest.mark.parametrize("contact", ["ground", "base", "mass"])
-@pytest.mark.parametrize("dof", [1, 2, 3, 5, 8])
+@pytest.mark.parametrize(
+    ("contact", "dof"),
+    [(c, n) for c in ("ground", "base", "mass") for n in (1, 2, 3, 5, 8) if (c, n) != ("mass", 1)],
+)
 def test_generic_against_direct_evaluation(contact, dof):
-    if contact == "mass" and dof < 2:
-        pytest.skip("a mass contact needs two masses")
     rng = np.random.default_rng(RNG_SEED + dof)
     gam = tuple(rng.uniform(0.3, 3.0, dof - 1))
     kap = tuple(rng.uniform(0.3, 3.0, dof - 1))
@@ -445,6 +445,10 @@ def test_exact_sdof_equals_eq16():
         ("mass", 3, 2, (1.3, 0.7), (0.9, 1.6), 0.8),
         ("ground", 5, 4, 1.0, 1.0, 1.3),
         ("ground", 2, 1, 1.0, 1.0, 1.7),
+        ("base", 2, 1, 1.5, 0.8, 0.45),
+        ("mass", 2, 1, 0.8, 1.5, 0.62),
+        ("ground", 5, 4, 1.0, 1.0, 0.7),
+        ("base", 3, 2, (0.7, 1.4), (1.2, 0.6), 0.6),
     ],
 )
 def test_exact_matches_antisymmetric_solver(contact, dof, j, gamma, kappa, r):
@@ -527,7 +531,7 @@ def test_exact_below_paper_and_equal_where_c_inactive(contact, dof, j):
     rng = np.random.default_rng(RNG_SEED)
     for gamma, kappa in PAIRS[:3]:
         s = Scene(contact, dof, j, gamma=gamma, kappa=kappa)
-        r = np.linspace(0.05, 3.0, 400)
+        r = np.linspace(0.05, 3.0, 250)
         paper = continuous_bound(s, r, "paper")
         exact = continuous_bound(s, r, "exact")
         S = generalised_S(s, r)
@@ -536,7 +540,7 @@ def test_exact_below_paper_and_equal_where_c_inactive(contact, dof, j):
         np.testing.assert_array_equal(exact[same], paper[same])
         assert np.all(exact[~same] < paper[~same])
         assert same.any() and (~same).any()
-        for i in rng.choice(r.size, 6, replace=False):
+        for i in rng.choice(r.size, 4, replace=False):
             dense = _dense_sup(s, r[i])
             assert max(1.0, dense) == pytest.approx(S[i], rel=1e-6)
 
@@ -593,7 +597,8 @@ def test_sweeps_have_no_nan_and_no_warnings():
 
 
 def test_exact_sweeps_have_no_nan_and_no_warnings():
-    scenes = list(all_scenes(dofs=(1, 2, 3)))
+    scenes = list(all_scenes(dofs=(1, 2)))
+    scenes += [s for s in all_scenes(dofs=(3,), ratios=(1e-6, 1e6)) if s.gamma != s.kappa]
     scenes += [
         Scene("ground", 5, 4, gamma=1e-6, kappa=1e6),
         Scene("mass", 5, 2, gamma=1e6, kappa=1e-6),
@@ -605,6 +610,8 @@ def test_exact_sweeps_have_no_nan_and_no_warnings():
         warnings.simplefilter("error")
         for s in scenes:
             r = singular_r(s)
+            if s.dof > 5:  # keep the extremes, thin out the resonances (time)
+                r = np.concatenate([r[:7], r[7::5]])
             with np.errstate(all="raise"):
                 paper = continuous_bound(s, r, "paper")
                 exact = continuous_bound(s, r, "exact")
@@ -660,6 +667,10 @@ def test_predict_broadcasting_and_shapes():
         boundaries(s, 1.0, method="hong-liu")
     with pytest.raises(ValueError, match="r"):
         boundaries(s, [1.0, 0.0])
+    with pytest.raises(ValueError, match="beta"):
+        predict(s, 1.0, [0.1, -0.1])
+    with pytest.raises(ValueError, match="beta"):
+        predict(s, 1.0, np.nan)
 
 
 # -------------------------------------------------------------------- reference data
