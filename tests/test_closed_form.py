@@ -579,6 +579,12 @@ def test_limits_at_singular_points():
         for method in ("paper", "exact"):
             vals = continuous_bound(s2, r0 * (1 + np.array([0.0, -1e-8, 1e-8])), method)
             np.testing.assert_allclose(vals, expect, rtol=1e-6)
+        # S is finite and continuous through the resonance (Omega_i = 1 exactly at r0)
+        assert np.sqrt(contact_modes(s2).lam[i]) / r0 == 1.0
+        S = generalised_S(s2, r0 * (1 + np.array([0.0, -1e-8, 1e-8])))
+        np.testing.assert_allclose(S, S[1], rtol=1e-6)
+        # (the brute-force sum cancels badly closer to the pole than this)
+        assert S[0] == pytest.approx(max(1.0, _dense_sup(s2, r0 * (1 + 1e-6))), rel=1e-5)
 
 
 def test_sweeps_have_no_nan_and_no_warnings():
