@@ -34,6 +34,7 @@ def settings_args(settings: Settings) -> tuple:
         int(settings.max_events),
         float(settings.growth_factor),
         _IC_CODES[settings.initial_condition],
+        float(settings.max_work),
     )
 
 

@@ -10,7 +10,11 @@ max_cycles         150     1000      5000     cycle budget before NOT_CONVERGED
 min_cycles         2       3         4        cycles simulated before testing convergence
 shooting           True    True      True     Newton on the Poincare map for slow points
 shooting_after     4       6         8        cycles of plain iteration before shooting
-max_events         400     2000      8000     events per cycle before EVENT_LIMIT
+max_events         400     2000      8000     events per cycle before EVENT_LIMIT (raised
+                                               to 8 Omega_max: a free mode of frequency
+                                               Omega reverses the contact 2 Omega times)
+max_work           1e6     5e6       5e7      event-function evaluations per point before
+                                               WORK_LIMIT (bounds the time of any point)
 growth_factor      1e3     1e4       1e5      section growth (vs. start) flagged UNBOUNDED
 =================  ======  ========  =======  ============================================
 
@@ -38,6 +42,7 @@ class Settings:
     shooting: bool = True
     shooting_after: int = 6
     max_events: int = 2000
+    max_work: int = 5_000_000
     growth_factor: float = 1e4
     initial_condition: str = "held"
 
@@ -50,6 +55,7 @@ class Settings:
             ("min_cycles", 1 <= self.min_cycles <= self.max_cycles, "in 1..max_cycles"),
             ("shooting_after", self.shooting_after >= 1, ">= 1"),
             ("max_events", self.max_events >= 4, ">= 4"),
+            ("max_work", self.max_work >= 1000, ">= 1000"),
             ("growth_factor", self.growth_factor > 1.0, "> 1"),
             ("initial_condition", self.initial_condition in ("held", "rest"), "'held' or 'rest'"),
         )
@@ -70,6 +76,7 @@ PRESETS: dict[str, Settings] = {
         min_cycles=2,
         shooting_after=4,
         max_events=400,
+        max_work=1_000_000,
         growth_factor=1e3,
     ),
     "balanced": Settings(),
@@ -81,6 +88,7 @@ PRESETS: dict[str, Settings] = {
         min_cycles=4,
         shooting_after=8,
         max_events=8000,
+        max_work=50_000_000,
         growth_factor=1e5,
     ),
 }

@@ -65,6 +65,7 @@ from numba import njit
 from tasks.regimes import (
     CONTINUOUS,
     EVENT_LIMIT,
+    WORK_LIMIT,
     IC_HELD,
     IC_REST,
     NO_MOTION,
@@ -78,8 +79,8 @@ from tasks.regimes import (
 OMEGA, ETA0, ETAD0, LOAD_COS, LOAD_CONST, ALPHA, DELTA = range(7)
 N_ROWS = 7
 # Entries of the scalar segment array ``sc``.
-TAU0, COS_TAU0, SIN_TAU0, OBS_COS, OBS0, KIND, SIGN, BETA = range(8)
-N_SCALARS = 8
+TAU0, COS_TAU0, SIN_TAU0, OBS_COS, OBS0, KIND, SIGN, BETA, EVALS = range(9)
+N_SCALARS = 9
 KIND_SLIP = 0.0
 KIND_STICK = 1.0
 
@@ -152,7 +153,10 @@ def evaluate(seg, sc, t, eta, etad):
 
 @njit(cache=True)
 def event_function(seg, sc, t, eta, etad):
-    """``(F, F')`` at t: ``s y`` while sliding, ``beta - |y|`` while stuck."""
+    """``(F, F')`` at t: ``s y`` while sliding, ``beta - |y|`` while stuck.
+
+    Counts the evaluations in ``sc[EVALS]`` (the work budget of a point)."""
+    sc[EVALS] += 1.0
     y, dy = evaluate(seg, sc, t, eta, etad)
     if sc[KIND] == KIND_SLIP:
         return sc[SIGN] * y, sc[SIGN] * dy
@@ -288,7 +292,7 @@ def next_event(seg, sc, t_end, h, tol, eta, etad):
         step = h
         certified = False
         if fa > 0.0 and lipschitz < np.inf:
-            safe = fa / lipschitz
+            safe = fa / lipschitz if lipschitz > 0.0 else t_end - ta
             if safe > step:
                 step = safe
                 certified = True
@@ -507,6 +511,7 @@ def run_cycle(x, xd, mode, stick_start, stats, ctx, work, rec, rec_n):
         tol,
         stick_min,
         max_events,
+        max_work,
     ) = ctx
     eta, etad, eta_s, etad_s, q = work
     for i in range(N_STATS):
@@ -583,7 +588,12 @@ def run_cycle(x, xd, mode, stick_start, stats, ctx, work, rec, rec_n):
         if events > max_events:
             stats[ST_STATUS] = EVENT_LIMIT
             break
+        if sc[EVALS] > max_work:
+            stats[ST_STATUS] = WORK_LIMIT
+            break
     stats[ST_EVENTS] = events
+    if sc[EVALS] > max_work and stats[ST_STATUS] == STATUS_OK:
+        stats[ST_STATUS] = WORK_LIMIT
     for i in range(x.shape[0]):
         if not (math.isfinite(x[i]) and math.isfinite(xd[i])):
             stats[ST_STATUS] = NUMERICAL_FAILURE
@@ -730,10 +740,11 @@ def _same_chart(mode_a, mode_b):
 
 
 @njit(cache=True)
-def _shoot(X0, mode, stats, ctx, work, rtol, max_newton):
+def _shoot(X0, mode, stats, ctx, work, rtol, floor, max_newton):
     """Newton's method on the Poincare map ``P(X) - X = 0`` (shooting).
 
-    Works in the coordinates of the phase the section falls in
+    ``floor`` is the smallest scale the residual is measured against (the
+    static response). Works in the coordinates of the phase the section falls in
     (:func:`_reduce`), with the Jacobian by forward differences (one period per
     column); the section must fall in the same kind of phase (stuck or
     sliding) before and after the period. Returns ``(success, X, cycles_used)``;
@@ -759,7 +770,7 @@ def _shoot(X0, mode, stats, ctx, work, rtol, max_newton):
         R = y1 - y0
         scale = max(_max_abs(X1), 1e-300)
         res = _max_abs(R)
-        if res <= rtol * scale:
+        if res <= rtol * max(scale, floor):
             return True, X0, cycles
         for k in range(dim):
             hk = 1e-7 * max(abs(y0[k]), 1e-3 * scale)
@@ -806,7 +817,7 @@ def _shoot(X0, mode, stats, ctx, work, rtol, max_newton):
             lam *= 0.5
         if not accepted:
             return False, X0, cycles
-    ok = _max_abs(y1 - y0) <= rtol * max(_max_abs(X1), 1e-300)
+    ok = _max_abs(y1 - y0) <= rtol * max(_max_abs(X1), floor)
     return ok, X0, cycles
 
 
@@ -846,6 +857,7 @@ def _context(r, beta, scene, settings):
     step_fraction = settings[1]
     max_events = settings[7]
     initial_condition = settings[9]
+    max_work = settings[10]
     n = gamma.shape[0]
     m = lam_s.shape[0]
     r2 = r * r
@@ -862,6 +874,7 @@ def _context(r, beta, scene, settings):
         seg_slip[DELTA, k] = w_slip[k]
         om_max = max(om_max, om)
     h_slip = step_fraction * math.pi / om_max
+    om_slip = om_max
     seg_stick = np.zeros((N_ROWS, m))
     om_max = 1.0
     for k in range(m):
@@ -898,7 +911,8 @@ def _context(r, beta, scene, settings):
         h_stick,
         event_tol,
         1e3 * event_tol,
-        max_events,
+        max(max_events, int(8.0 * max(om_slip, om_max))),
+        max_work,
     )
     work = (np.zeros(n), np.zeros(n), np.zeros(m), np.zeros(m), np.zeros(2 * m))
     # Held start: contact at d0 = 0, the rest on the forced response of the
@@ -959,6 +973,25 @@ def _linear_amplitude(seg_slip):
 
 
 @njit(cache=True)
+def _resonant_growth(seg_slip, f_r2, beta):
+    """Den Hartog's resonance rule, extended mode by mode (MODEL.md 3).
+
+    At an exact resonance of the sliding system (``Omega_k = 1``) the load feeds
+    mode k with ``pi |a_k| A`` per cycle while the contact dissipates at most
+    ``4 beta |phi_k . b| A / r^2``; the amplitude A grows without bound when
+    ``beta < pi |a_k| / (4 |f_k|)`` (SDOF: beta < pi/4). Used only where the
+    rate of growth can be too slow to see in simulation.
+    """
+    for k in range(seg_slip.shape[1]):
+        w = seg_slip[OMEGA, k]
+        a = seg_slip[LOAD_COS, k]
+        if abs(w * w - 1.0) <= 1e-12 and a != 0.0:
+            if 4.0 * beta * abs(f_r2[k]) < math.pi * abs(a):
+                return True
+    return False
+
+
+@njit(cache=True)
 def simulate_point(r, beta, scene, settings, out, final):
     """Classify one (r, beta) point; writes the fields into ``out`` and the last
     section state and phase ``(x, x', mode)`` into ``final``."""
@@ -973,6 +1006,7 @@ def simulate_point(r, beta, scene, settings, out, final):
         _max_events,
         growth_factor,
         _initial_condition,
+        _max_work,
     ) = settings
     ctx, work, X, mode, ic_used = _context(r, beta, scene, settings)
     n = X.shape[0] // 2
@@ -988,6 +1022,9 @@ def simulate_point(r, beta, scene, settings, out, final):
         out[OUT_PERIOD] = 1.0
         out[OUT_IC] = ic_used
         return
+    if _resonant_growth(ctx[0], ctx[14], beta):
+        _undetermined(out, UNBOUNDED, 0, ic_used)
+        return
     stats = np.zeros(N_STATS)
     stats_prev = np.zeros(N_STATS)
     X_prev = X.copy()
@@ -995,12 +1032,14 @@ def simulate_point(r, beta, scene, settings, out, final):
     mode_prev2 = mode
     X_prev2 = X.copy()
     diff_prev = np.inf
-    ref = max(_max_abs(X), 1e-300)
+    # scale of the motion: the static response to the load amplitude, or more
+    ref = max(_max_abs(X), _max_abs(np.linalg.solve(ctx[5], ctx[4])), 1e-300)
     stick_start = 0.0
     cycles = 0
     next_shot = shooting_after
     shots_failed = 0
     unit_ratio_run = 0
+    run_start_scale = 0.0
     while cycles < max_cycles:
         X_new, mode_new, stick_start = _cycle(X, mode, stick_start, stats, ctx, work)
         cycles += 1
@@ -1031,27 +1070,43 @@ def simulate_point(r, beta, scene, settings, out, final):
             _undetermined(out, UNBOUNDED, cycles, ic_used)
             return
         diff = _max_abs_diff(X, X_prev)
-        if cycles >= min_cycles and _same_chart(mode, mode_prev):
+        # the section repeats (to rtol of the motion, or of the static response
+        # when the motion is far smaller) and so does the event pattern
+        if (
+            cycles >= min_cycles
+            and _same_chart(mode, mode_prev)
+            and stats[ST_STOPS] == stats_prev[ST_STOPS]
+            and stats[ST_REVERSALS] == stats_prev[ST_REVERSALS]
+        ):
             rho = diff / diff_prev if diff_prev > 0.0 else 0.0
             err = diff / (1.0 - min(rho, 0.999))
-            if err <= section_rtol * scale or diff <= 1e-13 * scale:
+            if err <= section_rtol * max(scale, ref) or diff <= 1e-13 * scale:
                 final[: 2 * n] = X_prev
                 final[2 * n] = mode_prev
                 _finish(out, stats, stats_prev, 1, cycles, ic_used)
                 return
         if cycles >= min_cycles + 1 and _same_chart(mode, mode_prev2):
             diff2 = _max_abs_diff(X, X_prev2)
-            if diff2 <= section_rtol * scale and diff > 10.0 * section_rtol * scale:
+            tol2 = section_rtol * max(scale, ref)
+            if diff2 <= tol2 and diff > 10.0 * tol2:
                 final[: 2 * n] = X_prev2
                 final[2 * n] = mode_prev2
                 _finish(out, stats, stats_prev, 2, cycles, ic_used)
                 return
         # linear growth (resonance without enough friction): increments repeat
-        if diff_prev < np.inf and diff > 0.0 and abs(diff / diff_prev - 1.0) < 1e-6:
+        # (Coulomb-damped decay also repeats its increments: growth must be seen)
+        if 0.0 < diff_prev < np.inf and diff > 0.0 and abs(diff / diff_prev - 1.0) < 1e-6:
+            if unit_ratio_run == 0:
+                run_start_scale = scale
             unit_ratio_run += 1
         else:
             unit_ratio_run = 0
-        if unit_ratio_run >= 10 and scale > 10.0 * ref and (shots_failed > 0 or not shooting):
+        if (
+            unit_ratio_run >= 10
+            and scale > 10.0 * ref
+            and scale - run_start_scale >= 5.0 * diff
+            and (shots_failed > 0 or not shooting)
+        ):
             _undetermined(out, UNBOUNDED, cycles, ic_used)
             return
         for i in range(N_STATS):
@@ -1059,7 +1114,7 @@ def simulate_point(r, beta, scene, settings, out, final):
         diff_prev = diff
         if shooting and cycles >= next_shot:
             next_shot = 2 * next_shot
-            ok, Xs, used = _shoot(X, mode, stats, ctx, work, section_rtol, 8)
+            ok, Xs, used = _shoot(X, mode, stats, ctx, work, section_rtol, ref, 8)
             cycles += used
             if ok:
                 final[: 2 * n] = Xs

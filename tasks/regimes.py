@@ -27,6 +27,10 @@ EVENT_LIMIT = -3
 """Too many events in one cycle (chattering or a degenerate event sequence)."""
 NUMERICAL_FAILURE = -4
 """A non-finite state or an event that could not be located."""
+WORK_LIMIT = -5
+"""The point exceeded its budget of function evaluations (``max_work``): modal
+frequencies far above the excitation (extreme mass or stiffness ratios at
+small r) or persistent chattering."""
 NOT_COMPUTED = -127
 """Fill value of stored maps: the point has not been simulated (yet)."""
 
@@ -40,6 +44,7 @@ UNDETERMINED: dict[int, str] = {
     UNBOUNDED: "unbounded_growth",
     EVENT_LIMIT: "event_limit",
     NUMERICAL_FAILURE: "numerical_failure",
+    WORK_LIMIT: "work_limit",
 }
 ALL_CODES: dict[int, str] = {**REGIMES, **UNDETERMINED}
 """Every code a simulation can return, with its name (CF ``flag_meanings``)."""
