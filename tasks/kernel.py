@@ -65,7 +65,6 @@ from numba import njit
 from tasks.regimes import (
     CONTINUOUS,
     EVENT_LIMIT,
-    WORK_LIMIT,
     IC_HELD,
     IC_REST,
     NO_MOTION,
@@ -73,6 +72,7 @@ from tasks.regimes import (
     NUMERICAL_FAILURE,
     STICK_SLIP,
     UNBOUNDED,
+    WORK_LIMIT,
 )
 
 # Rows of the per-mode segment array ``seg`` (shape (N_ROWS, m)).
