@@ -327,8 +327,19 @@ def next_event(seg, sc, t_end, h, tol, eta, etad):
 TWO_PI = 2.0 * math.pi
 
 # Entries of the per-cycle statistics array.
-ST_STOPS, ST_REVERSALS, ST_STUCK_TIME, ST_DMIN, ST_DMAX, ST_FOREVER, ST_EVENTS, ST_STATUS = range(8)
-N_STATS = 8
+(
+    ST_STOPS,
+    ST_REVERSALS,
+    ST_STUCK_TIME,
+    ST_DMIN,
+    ST_DMAX,
+    ST_FOREVER,
+    ST_EVENTS,
+    ST_STATUS,
+    ST_MID,
+    ST_LONGEST,
+) = range(10)
+N_STATS = 10
 STATUS_OK = 0.0
 
 # Event records (tasks.trajectory): kinds and columns of the record buffer.
@@ -471,16 +482,16 @@ def _record(rec, rec_n, tau, kind, mode, g, x, xd):
 
 
 @njit(cache=True)
-def run_cycle(x, xd, mode, stick_start, stats, ctx, work, rec, rec_n):
-    """Advance ``(x, x', mode)`` over one excitation period ``0 <= tau <= 2 pi``.
+def run_cycle(x, xd, mode, stick_start, stats, ctx, work, rec, rec_n, tau_start, tau_end):
+    """Advance ``(x, x', mode)`` from ``tau_start`` to ``tau_end`` (one period, or part).
 
     ``mode`` is +1 / -1 (sliding with that sign) or 0 (stuck). ``stick_start``
-    is the time the current stick phase began (relative to this cycle's start;
-    negative if it began earlier). Fills ``stats`` (stops of duration above
-    ``stick_min`` ending in this cycle, reversals, stuck time, min / max of the
+    is the time the current stick phase began (same time frame; earlier than
+    ``tau_start`` if it began before). Fills ``stats`` (stops of duration above
+    ``stick_min`` ending in this run, reversals, stuck time, min / max of the
     contact displacement ``b . x``, whether the contact provably stays stuck for
-    ever, events, status). Returns ``(mode, stick_start)`` for the next cycle
-    (``stick_start`` shifted by -2 pi).
+    ever, events, status, and the middle ``ST_MID`` of the longest phase, the
+    best place for a Poincare section). Returns ``(mode, stick_start)``.
 
     If ``rec`` has rows, every phase boundary is appended to it (``rec_n[0]``
     counts them): the cycle start, each event with the state at the event and
@@ -519,12 +530,14 @@ def run_cycle(x, xd, mode, stick_start, stats, ctx, work, rec, rec_n):
     d = _dot(b, x)
     stats[ST_DMIN] = d
     stats[ST_DMAX] = d
-    tau = 0.0
+    tau = tau_start
     v0 = _dot(b, xd)
     events = 0
-    _record(rec, rec_n, 0.0, EV_SECTION, mode, _contact_force(p, 1.0, K, x, g_load), x, xd)
+    _record(
+        rec, rec_n, tau, EV_SECTION, mode, _contact_force(p, math.cos(tau), K, x, g_load), x, xd
+    )
     while True:
-        remaining = TWO_PI - tau
+        remaining = tau_end - tau
         if mode == 0:
             d0 = _start_stick(
                 seg_stick,
@@ -550,6 +563,9 @@ def run_cycle(x, xd, mode, stick_start, stats, ctx, work, rec, rec_n):
             g, _ = evaluate(seg_stick, sc, t, eta_s, etad_s)
             _stick_state(phi_s, T, w, d0, eta_s, etad_s, q, x, xd)
             stats[ST_STUCK_TIME] += t
+            if t > stats[ST_LONGEST]:
+                stats[ST_LONGEST] = t
+                stats[ST_MID] = tau + 0.5 * t
             if not found:
                 break
             if tau + t - stick_start > stick_min:
@@ -563,6 +579,9 @@ def run_cycle(x, xd, mode, stick_start, stats, ctx, work, rec, rec_n):
             t, found = next_event(seg_slip, sc, remaining, h_slip, tol, eta, etad)
             evaluate(seg_slip, sc, t, eta, etad)
             _slip_state(phi, eta, etad, x, xd)
+            if t > stats[ST_LONGEST]:
+                stats[ST_LONGEST] = t
+                stats[ST_MID] = tau + 0.5 * t
             d = _dot(b, x)
             if d < stats[ST_DMIN]:
                 stats[ST_DMIN] = d
@@ -597,8 +616,10 @@ def run_cycle(x, xd, mode, stick_start, stats, ctx, work, rec, rec_n):
     for i in range(x.shape[0]):
         if not (math.isfinite(x[i]) and math.isfinite(xd[i])):
             stats[ST_STATUS] = NUMERICAL_FAILURE
-    _record(rec, rec_n, TWO_PI, EV_END, mode, _contact_force(p, 1.0, K, x, g_load), x, xd)
-    return mode, stick_start - TWO_PI
+    _record(
+        rec, rec_n, tau_end, EV_END, mode, _contact_force(p, math.cos(tau_end), K, x, g_load), x, xd
+    )
+    return mode, stick_start
 
 
 @njit(cache=True)
@@ -622,18 +643,31 @@ def _max_abs_diff(a, b):
 
 
 @njit(cache=True)
-def _cycle(X, mode, stick_start, stats, ctx, work):
-    """One period from the section state ``X = (x, x')``; returns the new state."""
+def _advance(X, mode, stick_start, stats, ctx, work, tau_start, tau_end):
+    """``X = (x, x')`` at ``tau_start`` -> state at ``tau_end``; returns the new state."""
     n = X.shape[0] // 2
     x = X[:n].copy()
     xd = X[n:].copy()
     no_record = np.zeros((0, 1))
     no_count = np.zeros(1, dtype=np.int64)
-    mode, stick_start = run_cycle(x, xd, mode, stick_start, stats, ctx, work, no_record, no_count)
+    mode, stick_start = run_cycle(
+        x, xd, mode, stick_start, stats, ctx, work, no_record, no_count, tau_start, tau_end
+    )
     out = np.empty(2 * n)
     out[:n] = x
     out[n:] = xd
     return out, mode, stick_start
+
+
+@njit(cache=True)
+def _cycle(X, mode, stick_start, stats, ctx, work, theta):
+    """One period from the section state ``X = (x, x')`` at ``tau = theta``.
+
+    Returns the new section state, its phase and the stick start shifted by one
+    period (so that it stays relative to the section).
+    """
+    X1, mode, stick_start = _advance(X, mode, stick_start, stats, ctx, work, theta, theta + TWO_PI)
+    return X1, mode, stick_start - TWO_PI
 
 
 @njit(cache=True)
@@ -740,15 +774,48 @@ def _same_chart(mode_a, mode_b):
 
 
 @njit(cache=True)
-def _shoot(X0, mode, stats, ctx, work, rtol, floor, max_newton):
+def _fd_jacobian(y0, y1, mode, ctx, work, scale, J, theta):
+    """``J = dP/dy - I`` by forward differences (one period per column).
+
+    Returns the periods used, or -1 if a perturbed period left the chart.
+    """
+    n = ctx[4].shape[0]
+    b = ctx[6]
+    w = ctx[7]
+    T = ctx[8]
+    proj = ctx[13]
+    dim = y0.shape[0]
+    probe = np.empty(N_STATS)
+    for k in range(dim):
+        hk = 1e-7 * max(abs(y0[k]), 1e-3 * scale)
+        yp = y0.copy()
+        yp[k] += hk
+        Xp = _expand(yp, mode, n, w, T)
+        Pk, mk, _ = _cycle(Xp, _phase_of(Xp, mode, b), theta, probe, ctx, work, theta)
+        if not _same_chart(mk, mode) or probe[ST_STATUS] != STATUS_OK:
+            return -1
+        yk = _reduce(Pk, mode, b, w, proj)
+        for i in range(dim):
+            J[i, k] = (yk[i] - y1[i]) / hk
+        J[k, k] -= 1.0
+    return dim
+
+
+@njit(cache=True)
+def _shoot(X0, mode, stats, ctx, work, rtol, floor, max_newton, theta):
     """Newton's method on the Poincare map ``P(X) - X = 0`` (shooting).
 
-    ``floor`` is the smallest scale the residual is measured against (the
-    static response). Works in the coordinates of the phase the section falls in
-    (:func:`_reduce`), with the Jacobian by forward differences (one period per
-    column); the section must fall in the same kind of phase (stuck or
-    sliding) before and after the period. Returns ``(success, X, cycles_used)``;
-    on success ``stats`` holds the statistics of the verified period ``X -> P(X)``.
+    Works in the coordinates of the phase the section falls in
+    (:func:`_reduce`); the section must fall in the same kind of phase (stuck
+    or sliding) before and after the period. The Jacobian is built once by
+    forward differences (one period per column) and then updated by Broyden's
+    rank-one formula (one period per iteration). A fixed point is accepted only
+    if its residual is below ``rtol`` of the motion (or of ``floor``, the static
+    response) and it is not unstable (spectral radius of ``dP/dy`` at most
+    1 + 1e-6): shooting must find the attractor, not any periodic orbit.
+
+    Returns ``(success, X, cycles_used)``; on success ``stats`` holds the
+    statistics of the verified period ``X -> P(X)``.
     """
     n = X0.shape[0] // 2
     b = ctx[6]
@@ -758,67 +825,76 @@ def _shoot(X0, mode, stats, ctx, work, rtol, floor, max_newton):
     cycles = 0
     y0 = _reduce(X0, mode, b, w, proj)
     X0 = _expand(y0, mode, n, w, T)
-    X1, m1, _ = _cycle(X0, _phase_of(X0, mode, b), 0.0, stats, ctx, work)
+    X1, m1, _ = _cycle(X0, _phase_of(X0, mode, b), theta, stats, ctx, work, theta)
     cycles += 1
     if not _same_chart(m1, mode) or stats[ST_STATUS] != STATUS_OK or stats[ST_FOREVER] > 0.0:
         return False, X0, cycles
     y1 = _reduce(X1, mode, b, w, proj)
     dim = y0.shape[0]
-    probe = np.empty(N_STATS)
     J = np.empty((dim, dim))
+    scale = max(_max_abs(X1), 1e-300)
+    used = _fd_jacobian(y0, y1, mode, ctx, work, scale, J, theta)
+    if used < 0:
+        return False, X0, cycles + dim
+    cycles += used
+    if not np.all(np.isfinite(J)):
+        return False, X0, cycles
+    fresh = True
     for _ in range(max_newton):
         R = y1 - y0
         scale = max(_max_abs(X1), 1e-300)
         res = _max_abs(R)
         if res <= rtol * max(scale, floor):
-            return True, X0, cycles
-        for k in range(dim):
-            hk = 1e-7 * max(abs(y0[k]), 1e-3 * scale)
-            yp = y0.copy()
-            yp[k] += hk
-            Xp = _expand(yp, mode, n, w, T)
-            Pk, mk, _ = _cycle(Xp, _phase_of(Xp, mode, b), 0.0, probe, ctx, work)
-            cycles += 1
-            if not _same_chart(mk, mode) or probe[ST_STATUS] != STATUS_OK:
-                return False, X0, cycles
-            yk = _reduce(Pk, mode, b, w, proj)
+            dP = J.copy()
             for i in range(dim):
-                J[i, k] = (yk[i] - y1[i]) / hk
-        for i in range(dim):
-            J[i, i] -= 1.0
-        if not np.all(np.isfinite(J)):
-            return False, X0, cycles
+                dP[i, i] += 1.0
+            radius = np.max(np.abs(np.linalg.eigvals(dP.astype(np.complex128))))
+            return radius <= 1.0 + 1e-6, X0, cycles
         try:
             step = np.linalg.solve(J, -R)
         except Exception:  # singular: no isolated fixed point (e.g. resonance)
             return False, X0, cycles
-        if not np.all(np.isfinite(step)):
-            return False, X0, cycles
         # trust region: a fixed point far beyond the current motion is not a
         # settled transient but a (near-)singular map, e.g. resonant growth
-        if _max_abs(step) > 10.0 * scale:
+        if not np.all(np.isfinite(step)) or _max_abs(step) > 10.0 * scale:
             return False, X0, cycles
         lam = 1.0
         accepted = False
         for _ls in range(5):
             yn = y0 + lam * step
             Xn = _expand(yn, mode, n, w, T)
-            X1n, mn, _ = _cycle(Xn, _phase_of(Xn, mode, b), 0.0, stats, ctx, work)
+            X1n, mn, _ = _cycle(Xn, _phase_of(Xn, mode, b), theta, stats, ctx, work, theta)
             cycles += 1
             if _same_chart(mn, mode) and stats[ST_STATUS] == STATUS_OK and stats[ST_FOREVER] == 0.0:
                 y1n = _reduce(X1n, mode, b, w, proj)
-                if _max_abs(y1n - yn) < res:
+                Rn = y1n - yn
+                if _max_abs(Rn) < res:
+                    # Broyden: J += ((Rn - R) - J s) s^T / (s . s), s = yn - y0
+                    sv = yn - y0
+                    ss = _dot(sv, sv)
+                    if ss > 0.0:
+                        u = (Rn - R) - J @ sv
+                        for i in range(dim):
+                            for k in range(dim):
+                                J[i, k] += u[i] * sv[k] / ss
                     y0 = yn
                     y1 = y1n
                     X0 = Xn
                     X1 = X1n
                     accepted = True
+                    fresh = False
                     break
             lam *= 0.5
         if not accepted:
-            return False, X0, cycles
-    ok = _max_abs(y1 - y0) <= rtol * max(_max_abs(X1), floor)
-    return ok, X0, cycles
+            if fresh:
+                return False, X0, cycles
+            # the updated Jacobian went stale: rebuild it once here
+            used = _fd_jacobian(y0, y1, mode, ctx, work, scale, J, theta)
+            if used < 0:
+                return False, X0, cycles + dim
+            cycles += used
+            fresh = True
+    return False, X0, cycles
 
 
 @njit(cache=True)
@@ -942,7 +1018,7 @@ def _context(r, beta, scene, settings):
 
 
 @njit(cache=True)
-def start_phase(X, beta, ctx):
+def start_phase(X, beta, ctx, theta):
     """Phase a section state starts in: sliding with the sign of ``b . x'``, or
     (at rest relative to the contact) stuck if ``|g| <= beta``."""
     p = ctx[4]
@@ -955,7 +1031,7 @@ def start_phase(X, beta, ctx):
         return 1
     if v < 0.0:
         return -1
-    g0 = _contact_force(p, 1.0, K, X[:n], g_load)
+    g0 = _contact_force(p, math.cos(theta), K, X[:n], g_load)
     return 0 if abs(g0) <= beta else (1 if g0 > 0.0 else -1)
 
 
@@ -1010,8 +1086,10 @@ def simulate_point(r, beta, scene, settings, out, final):
     ) = settings
     ctx, work, X, mode, ic_used = _context(r, beta, scene, settings)
     n = X.shape[0] // 2
+    theta = 0.0  # phase of the Poincare section
     final[: 2 * n] = X
     final[2 * n] = mode
+    final[2 * n + 1] = theta
     if beta == 0.0:  # undamped linear system: continuous by definition
         out[OUT_REGIME] = CONTINUOUS
         out[OUT_CONVERGED] = 1.0
@@ -1040,11 +1118,14 @@ def simulate_point(r, beta, scene, settings, out, final):
     shots_failed = 0
     unit_ratio_run = 0
     run_start_scale = 0.0
+    chart_flips = 0
+    moves = 0
     while cycles < max_cycles:
-        X_new, mode_new, stick_start = _cycle(X, mode, stick_start, stats, ctx, work)
+        X_new, mode_new, stick_start = _cycle(X, mode, stick_start, stats, ctx, work, theta)
         cycles += 1
         final[: 2 * n] = X_new
         final[2 * n] = mode_new
+        final[2 * n + 1] = theta
         status = stats[ST_STATUS]
         if status != STATUS_OK:
             _undetermined(out, status, cycles, ic_used)
@@ -1085,6 +1166,7 @@ def simulate_point(r, beta, scene, settings, out, final):
                 final[2 * n] = mode_prev
                 _finish(out, stats, stats_prev, 1, cycles, ic_used)
                 return
+        chart_flips = chart_flips + 1 if not _same_chart(mode, mode_prev) else 0
         if cycles >= min_cycles + 1 and _same_chart(mode, mode_prev2):
             diff2 = _max_abs_diff(X, X_prev2)
             tol2 = section_rtol * max(scale, ref)
@@ -1112,13 +1194,39 @@ def simulate_point(r, beta, scene, settings, out, final):
         for i in range(N_STATS):
             stats_prev[i] = stats[i]
         diff_prev = diff
-        if shooting and cycles >= next_shot:
+        shoot_now = shooting and cycles >= next_shot
+        if (shoot_now or chart_flips >= 2) and moves < 8:
+            # The section falls near an event (the phase there flips between
+            # cycles): move it to the middle of the longest phase of the last
+            # period, where the Poincare map is smooth, and restart the history.
+            target = stats[ST_MID]
+            if abs(target - theta) > 1e-6 and stats[ST_LONGEST] > 0.0:
+                X, mode, stick_start = _advance(
+                    X, mode, stick_start, stats_prev, ctx, work, theta, target
+                )
+                if stats_prev[ST_STATUS] != STATUS_OK:
+                    _undetermined(out, stats_prev[ST_STATUS], cycles, ic_used)
+                    return
+                shift = TWO_PI * math.floor(target / TWO_PI)
+                theta = target - shift
+                stick_start -= shift
+                moves += 1
+                X_prev = X.copy()
+                X_prev2 = X.copy()
+                mode_prev = mode
+                mode_prev2 = mode
+                diff_prev = np.inf
+                stats_prev[ST_STOPS] = -1.0  # no period at this section yet
+                chart_flips = 0
+                unit_ratio_run = 0
+        if shoot_now:
             next_shot = 2 * next_shot
-            ok, Xs, used = _shoot(X, mode, stats, ctx, work, section_rtol, ref, 8)
+            ok, Xs, used = _shoot(X, mode, stats, ctx, work, section_rtol, ref, 20, theta)
             cycles += used
             if ok:
                 final[: 2 * n] = Xs
-                final[2 * n] = start_phase(Xs, ctx[3], ctx) if mode != 0 else 0
+                final[2 * n] = start_phase(Xs, ctx[3], ctx, theta) if mode != 0 else 0
+                final[2 * n + 1] = theta
                 _finish(out, stats, stats_prev, 1, cycles, ic_used)
                 return
             shots_failed += 1
@@ -1134,23 +1242,25 @@ def run_points(r, beta, scene, settings):
     """
     n = scene[0].shape[0]
     out = np.empty((r.shape[0], N_OUT))
-    final = np.empty((r.shape[0], 2 * n + 1))
+    final = np.empty((r.shape[0], 2 * n + 2))
     for i in range(r.shape[0]):
         simulate_point(r[i], beta[i], scene, settings, out[i], final[i])
     return out, final
 
 
 @njit(cache=True)
-def trace_cycles(r, beta, scene, settings, X0, mode0, n_cycles, max_records):
-    """Simulate ``n_cycles`` periods from ``(X0, mode0)`` and record every event.
+def trace_cycles(r, beta, scene, settings, X0, mode0, theta, n_cycles, max_records):
+    """Simulate ``n_cycles`` periods from ``(X0, mode0)`` at ``tau = theta``, recording events.
 
-    ``mode0`` < -1 means: use the held initial condition of :func:`_context`.
-    Returns ``(records, n_records, X, mode, status)``.
+    ``mode0`` < -1 means: the held initial condition of :func:`_context` (at
+    ``tau = 0``). Times in the records are absolute (``theta + 2 pi k`` starts
+    period k). Returns ``(records, n_records, X, mode, status)``.
     """
     ctx, work, Xh, mode_h, ic_used = _context(r, beta, scene, settings)
     if mode0 < -1:
         X = Xh
         mode = mode_h
+        theta = 0.0
     else:
         X = X0.copy()
         mode = mode0
@@ -1160,10 +1270,13 @@ def trace_cycles(r, beta, scene, settings, X0, mode0, n_cycles, max_records):
     stats = np.zeros(N_STATS)
     x = X[:n].copy()
     xd = X[n:].copy()
-    stick_start = 0.0
+    stick_start = theta
     status = STATUS_OK
-    for _ in range(n_cycles):
-        mode, stick_start = run_cycle(x, xd, mode, stick_start, stats, ctx, work, rec, rec_n)
+    for k in range(n_cycles):
+        t0 = theta + TWO_PI * k
+        mode, stick_start = run_cycle(
+            x, xd, mode, stick_start, stats, ctx, work, rec, rec_n, t0, t0 + TWO_PI
+        )
         if stats[ST_STATUS] != STATUS_OK:
             status = stats[ST_STATUS]
             break

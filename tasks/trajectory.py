@@ -36,8 +36,10 @@ class Trajectory:
     Attributes
     ----------
     tau : ndarray
-        Event times (``tau = 0`` is the start; one cycle is ``2 pi``). The first
-        row of every cycle is its start (``"section"``), the last its end.
+        Event times (absolute: the excitation is ``cos(tau)``; one cycle is
+        ``2 pi``). The first row of every cycle is its start (``"section"``,
+        at ``tau = 0`` or at the phase of the Poincare section the classifier
+        used), the last its end.
     kind : ndarray of int
         Event kinds, names in :data:`EVENT_KINDS`.
     mode : ndarray of int
@@ -129,11 +131,13 @@ def trajectory(
     beta = float(beta)
     n = scene.dof
     result = None
+    theta = 0.0
     if isinstance(start, str) and start == "steady":
         out, final = kernel.run_points(np.array([r]), np.array([beta]), scene_args, args)
         result = result_from_kernel(out, ())
         X0 = final[0, : 2 * n].copy()
         mode0 = int(final[0, 2 * n])
+        theta = float(final[0, 2 * n + 1])
         if cycles is None:
             cycles = max(1, int(result.period))
     elif isinstance(start, str) and start == "held":
@@ -144,17 +148,12 @@ def trajectory(
         x0, xd0 = (np.asarray(v, dtype=float).reshape(n) for v in start)
         X0 = np.concatenate([x0, xd0])
         ctx = kernel._context(r, beta, scene_args, args)[0]
-        mode0 = int(kernel.start_phase(X0, beta, ctx))
+        mode0 = int(kernel.start_phase(X0, beta, ctx, 0.0))
     cycles = 1 if cycles is None else int(cycles)
     rec, n_rec, _, _, status = kernel.trace_cycles(
-        r, beta, scene_args, args, X0, mode0, cycles, max_records
+        r, beta, scene_args, args, X0, mode0, theta, cycles, max_records
     )
     rec = rec[:n_rec].copy()
-    # absolute times: every cycle restarts at tau = 0
-    starts = np.flatnonzero(rec[:, kernel.REC_KIND] == kernel.EV_SECTION)
-    for k, i0 in enumerate(starts):
-        i1 = starts[k + 1] if k + 1 < len(starts) else n_rec
-        rec[i0:i1, kernel.REC_TAU] += 2.0 * np.pi * k
     ctx, work = kernel._context(r, beta, scene_args, args)[:2]
     x = rec[:, kernel.REC_X : kernel.REC_X + n]
     return Trajectory(
