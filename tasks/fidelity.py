@@ -13,8 +13,10 @@ shooting_after     4       6         8        cycles of plain iteration before s
 max_events         400     2000      8000     events per cycle before EVENT_LIMIT (raised
                                                to 8 Omega_max: a free mode of frequency
                                                Omega reverses the contact 2 Omega times)
-max_work           1e6     5e6       5e7      event-function evaluations per point before
-                                               WORK_LIMIT (bounds the time of any point)
+max_work           2e6     2e7       2e8      mode evaluations (one per mode per evaluation
+                                               of the event function) per point before
+                                               WORK_LIMIT: bounds the time of any point
+                                               (about 50 ns each: 1 s for "balanced")
 growth_factor      1e3     1e4       1e5      section growth (vs. start) flagged UNBOUNDED
 =================  ======  ========  =======  ============================================
 
@@ -42,7 +44,7 @@ class Settings:
     shooting: bool = True
     shooting_after: int = 6
     max_events: int = 2000
-    max_work: int = 5_000_000
+    max_work: int = 20_000_000
     growth_factor: float = 1e4
     initial_condition: str = "held"
 
@@ -76,7 +78,7 @@ PRESETS: dict[str, Settings] = {
         min_cycles=2,
         shooting_after=4,
         max_events=400,
-        max_work=1_000_000,
+        max_work=2_000_000,
         growth_factor=1e3,
     ),
     "balanced": Settings(),
@@ -88,7 +90,7 @@ PRESETS: dict[str, Settings] = {
         min_cycles=4,
         shooting_after=8,
         max_events=8000,
-        max_work=50_000_000,
+        max_work=200_000_000,
         growth_factor=1e5,
     ),
 }

@@ -155,8 +155,8 @@ def evaluate(seg, sc, t, eta, etad):
 def event_function(seg, sc, t, eta, etad):
     """``(F, F')`` at t: ``s y`` while sliding, ``beta - |y|`` while stuck.
 
-    Counts the evaluations in ``sc[EVALS]`` (the work budget of a point)."""
-    sc[EVALS] += 1.0
+    Counts the work in ``sc[EVALS]``, in mode evaluations (the budget of a point)."""
+    sc[EVALS] += 1.0 + seg.shape[1]
     y, dy = evaluate(seg, sc, t, eta, etad)
     if sc[KIND] == KIND_SLIP:
         return sc[SIGN] * y, sc[SIGN] * dy
@@ -1091,11 +1091,15 @@ def simulate_point(r, beta, scene, settings, out, final):
     final[2 * n] = mode
     final[2 * n + 1] = theta
     if beta == 0.0:  # undamped linear system: continuous by definition
+        amp = _linear_amplitude(ctx[0])
+        if not math.isfinite(amp):  # ... unless exactly at a resonance
+            _undetermined(out, UNBOUNDED, 0, ic_used)
+            return
         out[OUT_REGIME] = CONTINUOUS
         out[OUT_CONVERGED] = 1.0
         out[OUT_CYCLES] = 0.0
         out[OUT_STOPS] = 0.0
-        out[OUT_AMP] = _linear_amplitude(ctx[0])
+        out[OUT_AMP] = amp
         out[OUT_STICK] = 0.0
         out[OUT_PERIOD] = 1.0
         out[OUT_IC] = ic_used
