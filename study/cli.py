@@ -1,13 +1,15 @@
 """Command line: ``study run | plan | report`` (also ``python -m study``).
 
 Exit codes: 0 success, 1 a chunk failed, 2 bad input (one line on stderr,
-nothing written), 130 interrupted (finished chunks kept; rerun to resume).
+nothing written), 130 interrupted by Ctrl-C (SIGINT) and 143 stopped by SIGTERM
+(e.g. a batch job's time limit): finished chunks are kept, rerun to resume.
 """
 
 from __future__ import annotations
 
 import argparse
 import shlex
+import signal
 import sys
 from pathlib import Path
 
@@ -16,6 +18,17 @@ from study.errors import StudyError, StudyFailed, StudyInterrupted
 EXIT_FAILED = 1
 EXIT_BAD_INPUT = 2
 EXIT_INTERRUPTED = 130
+EXIT_TERMINATED = 143
+
+
+class _Terminated:
+    """SIGTERM handler: stop like Ctrl-C (KeyboardInterrupt), remember the signal."""
+
+    received = False
+
+    def __call__(self, signum, frame) -> None:
+        type(self).received = True
+        raise KeyboardInterrupt
 
 
 class _Parser(argparse.ArgumentParser):
@@ -151,6 +164,9 @@ def cmd_report(args) -> int:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     handler = {"run": cmd_run, "plan": cmd_plan, "report": cmd_report}[args.command]
+    previous = None
+    if args.command == "run":
+        previous = signal.signal(signal.SIGTERM, _Terminated())
     try:
         return handler(args)
     except StudyError as exc:
@@ -158,13 +174,16 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_BAD_INPUT
     except StudyInterrupted as exc:
         print(f"study: {exc}", file=sys.stderr)
-        return EXIT_INTERRUPTED
+        return EXIT_TERMINATED if _Terminated.received else EXIT_INTERRUPTED
     except StudyFailed as exc:
         print(f"study: error: {exc}", file=sys.stderr)
         return EXIT_FAILED
     except KeyboardInterrupt:
         print("study: interrupted", file=sys.stderr)
-        return EXIT_INTERRUPTED
+        return EXIT_TERMINATED if _Terminated.received else EXIT_INTERRUPTED
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
 
 
 if __name__ == "__main__":

@@ -32,7 +32,7 @@ import xarray as xr
 
 from study.chunks import ScenePlan
 from study.definition import Study
-from study.store import WorkDir
+from study.store import TMP_SUFFIX, WorkDir, fsync_dir
 from study.trace import TRACE_FIELDS
 from tasks import regimes
 from tasks.result import FIELDS
@@ -258,7 +258,7 @@ def write_result(
     Every chunk of every plan must be in the work folder.
     """
     output = Path(output)
-    tmp = output.with_name(f".{output.name}.{os.getpid()}.tmp")
+    tmp = output.with_name(f".{output.name}.{os.getpid()}{TMP_SUFFIX}")
     try:
         built = {p.spec.name: scene_dataset(p, study) for p in plans}
         gattrs = global_attrs(study, command)
@@ -278,10 +278,12 @@ def write_result(
                     encoding={f"/{n}": enc for n, (_, enc) in built.items()},
                 )
         _fill_chunks(tmp, plans, work, grouped=len(built) > 1)
+        with open(tmp, "rb+") as f:  # on disk before it takes the output's name
+            os.fsync(f.fileno())
         os.replace(tmp, output)
+        fsync_dir(output.parent)
     finally:
-        if tmp.exists():
-            tmp.unlink()
+        tmp.unlink(missing_ok=True)
     return output
 
 

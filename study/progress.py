@@ -1,8 +1,10 @@
 """Progress display on the client (stderr): points done, rate, ETA. No tqdm.
 
-Driven by the client's ``as_completed`` loop, so it works the same for a local
-cluster and a remote scheduler. Updates are throttled: at most every 0.5 s on a
-terminal (redrawn in place), every 10 s otherwise (one line each, for logs).
+Driven by the client's ``as_completed`` loop (points whose results reached the
+client and were saved), so it works the same for a local cluster and a remote
+scheduler and never counts a point that could still be lost. Updates are
+throttled: at most every 0.5 s on a terminal (redrawn in place), every 10 s
+otherwise (one line each, for logs).
 """
 
 from __future__ import annotations
@@ -39,6 +41,10 @@ class Progress:
         self.enabled = enabled
         self.t0 = time.monotonic()
         self.last = self.t0
+
+    def start(self) -> None:
+        """Start the clock now (after the cluster is up), so the rate counts computing only."""
+        self.t0 = self.last = time.monotonic()
 
     def update(self, n: int) -> None:
         self.done += n

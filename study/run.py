@@ -1,13 +1,24 @@
 """Running a study on Dask: submit chunks, persist results as they finish, assemble.
 
 The client submits at most a window of chunks at a time (a few per worker
-thread) and refills it from ``as_completed``, so neither the client nor the
-scheduler ever holds the whole study. Workers return numpy arrays; the client
-writes each finished chunk atomically into the work folder (``OUT.nc.work/``)
-before asking for more. A rerun skips every chunk already on disk (resume); a
-killed worker costs only its running tasks, which the scheduler reruns; tasks
-that raise are retried (``retries``). After the last chunk the result file is
-assembled (:mod:`study.netcdf`) and the work folder removed.
+thread, resized as workers come and go) and refills it from ``as_completed``,
+so neither the client nor the scheduler ever holds the whole study. Workers
+return numpy arrays and never write files; the client writes each finished
+chunk atomically into the work folder (``OUT.nc.work/``, :mod:`study.store`)
+before counting it done. A rerun skips every chunk already on disk (resume); a
+killed worker costs only the tasks it was running or holding, which the
+scheduler reruns elsewhere; tasks that raise are retried (``retries``). After
+the last chunk the result file is assembled (:mod:`study.netcdf`), written
+atomically, and only then is the work folder removed.
+
+Where the computing happens:
+
+* default: a ``LocalCluster`` on this machine (one single-threaded worker
+  process per core, 127.0.0.1 only);
+* ``scheduler=ADDRESS`` / ``scheduler_file=FILE`` (CLI ``--scheduler``,
+  ``--scheduler-file``): any running Dask scheduler, e.g. one started by
+  dask-jobqueue on an HPC batch system. The recipe for SLURM (and other batch
+  systems) is in ``examples/hpc_slurm.md``.
 """
 
 from __future__ import annotations
@@ -17,10 +28,13 @@ import os
 import sys
 import time
 from collections.abc import Iterator
+from concurrent.futures import CancelledError
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TextIO
+
+from distributed.diagnostics.plugin import WorkerPlugin
 
 from study import trace
 from study.chunks import Chunk, ScenePlan, plan
@@ -28,7 +42,13 @@ from study.compute import compute_chunk
 from study.definition import Study
 from study.errors import StudyError, StudyFailed, StudyInterrupted
 from study.progress import Progress
-from study.store import WorkDir
+from study.store import WorkDir, temporary_outputs
+
+#: Chunks kept in flight per worker thread (at least ``MIN_WINDOW`` in all).
+WINDOW_PER_THREAD = 4
+MIN_WINDOW = 16
+#: Seconds between two looks at the number of worker threads (window size).
+WINDOW_REFRESH = 5.0
 
 
 @dataclass
@@ -52,6 +72,43 @@ def default_workers() -> int:
         return os.cpu_count() or 1
 
 
+class IgnoreSigint(WorkerPlugin):
+    """Worker plugin: a local worker process ignores SIGINT.
+
+    Ctrl-C in a terminal reaches every process of the foreground group, the
+    LocalCluster's worker processes included; they would die printing
+    tracebacks while the client is still cancelling. The client handles
+    Ctrl-C and then stops its own cluster. Registered only on the LocalCluster
+    that :func:`connect` starts, never on a shared cluster.
+    """
+
+    name = "study-ignore-sigint"
+    idempotent = True
+
+    def setup(self, worker) -> None:
+        import signal
+        import threading
+
+        if threading.current_thread() is threading.main_thread():
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def dashboard_note(client, local: bool) -> str:
+    """``dashboard LINK`` (with a hint when bokeh is missing), or ``no dashboard``."""
+    try:
+        link = client.dashboard_link
+    except (KeyError, AttributeError, TypeError):  # the scheduler runs without one
+        link = None
+    if not link:
+        return "no dashboard"
+    if local:
+        try:
+            import bokeh  # noqa: F401
+        except ImportError:
+            return f"dashboard {link} (its plots need bokeh>=3.1: pip install bokeh)"
+    return f"dashboard {link}"
+
+
 @contextmanager
 def connect(
     client=None,
@@ -63,7 +120,9 @@ def connect(
     """A Dask client: the one given, a running scheduler, or a new LocalCluster.
 
     The LocalCluster has one single-threaded worker process per core (the
-    numerics hold the GIL) and listens on 127.0.0.1 only.
+    numerics hold the GIL) and listens on 127.0.0.1 only. With a running
+    scheduler, ``workers`` means: wait until that many workers are connected.
+    A client that is given is neither changed nor closed.
     """
     if client is not None:
         yield client
@@ -72,20 +131,30 @@ def connect(
 
     cluster = None
     if scheduler or scheduler_file:
+        where = scheduler or scheduler_file
+        flag = "--scheduler" if scheduler else "--scheduler-file"
+        if scheduler_file and not Path(scheduler_file).is_file():
+            raise StudyError(flag, f"no such scheduler file: {scheduler_file}")
         kw = {"address": scheduler} if scheduler else {"scheduler_file": scheduler_file}
         try:
             client = Client(**kw, timeout="30s")
         except (OSError, TimeoutError, ValueError) as exc:
-            where = scheduler or scheduler_file
-            flag = "--scheduler" if scheduler else "--scheduler-file"
             raise StudyError(flag, f"cannot connect to {where}: {exc}") from None
-        if workers:
-            client.wait_for_workers(workers)
-        print(
-            f"study: connected to {client.scheduler.address} "
-            f"({len(client.scheduler_info()['workers'])} workers)",
-            file=stream,
-        )
+        try:
+            n = len(client.nthreads())
+            print(
+                f"study: connected to {client.scheduler.address} ({n} workers), "
+                f"{dashboard_note(client, local=False)}",
+                file=stream,
+            )
+            if workers and n < workers:
+                print(f"study: waiting for {workers} workers", file=stream)
+                client.wait_for_workers(workers)
+            elif not n:
+                print("study: no workers yet; tasks wait until workers connect", file=stream)
+        except BaseException:
+            client.close()
+            raise
     else:
         n = workers or default_workers()
         cluster = LocalCluster(
@@ -96,10 +165,18 @@ def connect(
             dashboard_address="127.0.0.1:0",
             silence_logs=logging.ERROR,
         )
-        client = Client(cluster)
-        print(
-            f"study: local cluster with {n} workers, dashboard {client.dashboard_link}", file=stream
-        )
+        try:
+            client = Client(cluster)
+            client.register_plugin(IgnoreSigint())
+            print(
+                f"study: local cluster with {n} workers, {dashboard_note(client, local=True)}",
+                file=stream,
+            )
+        except BaseException:
+            if client is not None:
+                client.close()
+            cluster.close()
+            raise
     try:
         yield client
     finally:
@@ -153,11 +230,13 @@ def run_study(
     Raises
     ------
     StudyError
-        Bad output path or an unavailable feature (nothing is written).
+        Bad output path, unreachable scheduler, a run of the same output
+        already in progress, or an unavailable feature (nothing is written).
     StudyInterrupted
-        Ctrl-C: finished chunks stay in the work folder, no result file.
+        Ctrl-C (KeyboardInterrupt): finished chunks stay in the work folder,
+        no result file.
     StudyFailed
-        A chunk failed on every retry.
+        A chunk failed on every retry, or the scheduler cancelled it.
     """
     stream = stream if stream is not None else sys.stderr
     t0 = time.perf_counter()
@@ -165,37 +244,63 @@ def run_study(
     _check_runnable(study, output)
     plans = plan(study)
     work = WorkDir(output)
-    n_chunks = reused = reused_points = 0
-    for p in plans:
-        for c in p.chunks():
-            n_chunks += 1
-            if work.has(c.scene, c.key):
-                reused += 1
-                reused_points += c.n_points
-    missing = n_chunks - reused
-    n_points = study.n_points
-    print(
-        f"study: {study.name}: {n_points:,} points in {n_chunks:,} chunks; "
-        f"reusing {reused:,} chunks from {work.path}, computing {missing:,}",
-        file=stream,
-    )
-    compute_seconds = 0.0
-    if missing:
-        bar = Progress(n_points, reused_points, stream=stream, enabled=progress)
-        with connect(client, scheduler, scheduler_file, workers, stream) as c:
-            compute_seconds = _compute(c, plans, work, bar, retries, n_chunks)
-        bar.close()
-    from study.netcdf import write_result
+    if not work.lock():
+        raise StudyError(
+            "-o", f"another run is writing {output} (its work folder {work.path} is locked)"
+        )
+    finished = False
+    saved = [0]  # chunks on disk for this study: reused + computed so far
+    n_chunks = 0
+    try:
+        stale = work.clean()
+        for p in temporary_outputs(output):
+            p.unlink(missing_ok=True)
+            stale += 1
+        reused = reused_points = 0
+        for p in plans:
+            for c in p.chunks():
+                n_chunks += 1
+                if work.has(c.scene, c.key):
+                    reused += 1
+                    reused_points += c.n_points
+        saved[0] = reused
+        missing = n_chunks - reused
+        n_points = study.n_points
+        print(
+            f"study: {study.name}: {n_points:,} points in {n_chunks:,} chunks; "
+            f"reusing {reused:,} chunks from {work.path}, computing {missing:,}"
+            + (f" (deleted {stale} partial files of a killed run)" if stale else ""),
+            file=stream,
+        )
+        compute_seconds = 0.0
+        if missing:
+            bar = Progress(n_points, reused_points, stream=stream, enabled=progress)
+            with connect(client, scheduler, scheduler_file, workers, stream) as c:
+                bar.start()
+                compute_seconds = _compute(c, plans, work, bar, retries, saved)
+            bar.close()
+        from study.netcdf import write_result
 
-    write_result(study, plans, work, output, command)
-    work.remove()
+        write_result(study, plans, work, output, command)
+        finished = True
+    except KeyboardInterrupt:
+        raise StudyInterrupted(
+            f"interrupted: {saved[0]:,} of {n_chunks:,} chunks are saved in {work.path}; "
+            "no result file was written; rerun the same command to resume"
+        ) from None
+    finally:
+        if finished or not work.count():
+            work.remove()  # done, or nothing worth keeping
+        else:
+            work.unlock()
     wall = time.perf_counter() - t0
+    computed = saved[0] - reused  # chunks whose results arrived and were saved by this run
     print(
-        f"study: wrote {output} ({n_points:,} points; {missing:,} chunks computed, "
+        f"study: wrote {output} ({n_points:,} points; {computed:,} chunks computed, "
         f"{reused:,} reused) in {wall:.1f} s",
         file=stream,
     )
-    return RunSummary(output, n_points, n_chunks, reused, missing, wall, compute_seconds)
+    return RunSummary(output, n_points, n_chunks, reused, computed, wall, compute_seconds)
 
 
 def _pending(plans: list[ScenePlan], work: WorkDir) -> Iterator[tuple[ScenePlan, dict, Chunk]]:
@@ -206,52 +311,94 @@ def _pending(plans: list[ScenePlan], work: WorkDir) -> Iterator[tuple[ScenePlan,
                 yield p, axes, c
 
 
-def _compute(client, plans, work: WorkDir, bar: Progress, retries: int, n_chunks: int) -> float:
-    """Submit the missing chunks through a sliding window; persist each as it finishes."""
+def _failure(chunk: Chunk, exc: BaseException, retries: int, work: WorkDir) -> StudyFailed:
+    from distributed import KilledWorker
+
+    if isinstance(exc, CancelledError):
+        why = "was cancelled by the scheduler (restarted, or the connection to it was lost)"
+    elif isinstance(exc, KilledWorker):
+        why = f"killed every worker that ran it: {exc}"
+    else:
+        why = f"failed after {retries} retries: {type(exc).__name__}: {exc}"
+    msg = (
+        f"chunk {chunk.key} of scene {chunk.scene} {why}; "
+        f"finished chunks are kept in {work.path}, rerun to resume"
+    )
+    return StudyFailed(" ".join(msg.split()))
+
+
+def _compute(client, plans, work: WorkDir, bar: Progress, retries: int, saved: list[int]) -> float:
+    """Submit the missing chunks through a sliding window; persist each as it finishes.
+
+    ``saved[0]`` counts the chunks on disk (for the message of an interrupted
+    run). Returns the compute seconds the finished chunks report.
+    """
     from distributed import as_completed
 
-    threads = sum(client.nthreads().values()) or 1
-    window = max(16, 4 * threads)
     todo = _pending(plans, work)
-    meta: dict[str, Chunk] = {}
+    inflight: dict[str, tuple[object, Chunk]] = {}  # future key -> (future, chunk)
     futures = as_completed()
     compute_seconds = 0.0
+    window = MIN_WINDOW
+    next_look = 0.0
 
-    def submit_next() -> bool:
-        item = next(todo, None)
-        if item is None:
-            return False
-        p, axes, chunk = item
-        fut = client.submit(
-            compute_chunk, p.task(chunk, axes), key=f"study-{chunk.key}", retries=retries
+    def fill() -> None:
+        nonlocal window, next_look
+        now = time.monotonic()
+        if now >= next_look:  # workers come and go (adaptive clusters, lost workers)
+            threads = sum(client.nthreads().values())
+            window = max(MIN_WINDOW, WINDOW_PER_THREAD * threads)
+            next_look = now + WINDOW_REFRESH
+        batch: list[tuple[ScenePlan, dict, Chunk]] = []
+        while len(inflight) + len(batch) < window:
+            item = next(todo, None)
+            if item is None:
+                break
+            batch.append(item)
+        if not batch:
+            return
+        new = client.map(
+            compute_chunk,
+            [p.task(c, axes) for p, axes, c in batch],
+            key=[f"study-{c.key}" for _, _, c in batch],
+            retries=retries,
+            pure=False,
         )
-        meta[fut.key] = chunk
-        futures.add(fut)
-        return True
+        for fut, (_, _, chunk) in zip(new, batch, strict=True):
+            inflight[fut.key] = (fut, chunk)
+        futures.update(new)
 
     try:
-        for _ in range(window):
-            if not submit_next():
-                break
-        for fut in futures:
-            chunk = meta.pop(fut.key)
-            if fut.status != "finished":
-                exc = fut.exception()
-                raise StudyFailed(
-                    f"chunk {chunk.key} of scene {chunk.scene} failed after {retries} retries: "
-                    f"{exc!r}; finished chunks are kept in {work.path}, rerun to resume"
-                )
-            arrays = fut.result()
-            fut.release()
-            work.save(chunk.scene, chunk.key, arrays)
-            compute_seconds += float(arrays["seconds"])
-            bar.update(chunk.n_points)
-            submit_next()
-    except KeyboardInterrupt:
-        done = work.count()
-        client.cancel(list(futures.futures))
-        raise StudyInterrupted(
-            f"interrupted: {done:,} of {n_chunks:,} chunks are saved in {work.path}; "
-            "rerun the same command to resume"
-        ) from None
+        fill()
+        for done in futures.batches():
+            try:  # one round trip for the whole batch
+                results = client.gather(done)
+            except BaseException as exc:
+                if isinstance(exc, KeyboardInterrupt):
+                    raise
+                results = None
+            for i, fut in enumerate(done):
+                _, chunk = inflight[fut.key]
+                if results is None:
+                    try:
+                        arrays = fut.result()
+                    except KeyboardInterrupt:
+                        raise
+                    except BaseException as exc:  # CancelledError is not an Exception
+                        raise _failure(chunk, exc, retries, work) from None
+                else:
+                    arrays = results[i]
+                work.save(chunk.scene, chunk.key, arrays)
+                del inflight[fut.key]
+                fut.release()
+                saved[0] += 1
+                compute_seconds += float(arrays["seconds"])
+                bar.update(chunk.n_points)
+            fill()
+    except BaseException:
+        client.cancel([f for f, _ in inflight.values()])
+        raise
+    if inflight:  # as_completed ended with chunks unaccounted for: never silently
+        chunk = next(iter(inflight.values()))[1]
+        raise StudyFailed(f"chunk {chunk.key} of scene {chunk.scene} never completed")
     return compute_seconds
