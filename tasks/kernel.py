@@ -166,28 +166,44 @@ def event_function(seg, sc, t, eta, etad):
 
 
 @njit(cache=True)
-def derivative_bound(seg, sc):
-    """Upper bound of ``|F'|`` over the whole phase (inf near resonance).
+def derivative_bounds(seg, sc):
+    """Upper bounds of ``|F'|`` and ``|F''|`` over the whole phase (inf at resonance).
 
     Each mode is split into its free oscillation (amplitude ``A_free``), its
     harmonic particular part ``P = a / (Omega^2 - 1)`` and its static part, so
-    ``|eta'| <= Omega A_free + |P|`` and ``|eta''| <= Omega^2 A_free + |P|``.
+    that ``|eta^(k)| <= Omega^k A_free + |P|`` for k >= 1.
     """
-    bound = abs(sc[OBS_COS])
+    d1 = abs(sc[OBS_COS])
+    d2 = abs(sc[OBS_COS])
     for k in range(seg.shape[1]):
         w = seg[OMEGA, k]
         den = w * w - 1.0
         if den == 0.0:
-            return np.inf
-        pk = seg[LOAD_COS, k] / den
-        d = seg[ETA0, k] - seg[LOAD_CONST, k] / (w * w) - pk * sc[COS_TAU0]
-        e = (seg[ETAD0, k] + pk * sc[SIN_TAU0]) / w
+            return np.inf, np.inf
+        pk = abs(seg[LOAD_COS, k] / den)
+        d = seg[ETA0, k] - seg[LOAD_CONST, k] / (w * w) - seg[LOAD_COS, k] / den * sc[COS_TAU0]
+        e = (seg[ETAD0, k] + seg[LOAD_COS, k] / den * sc[SIN_TAU0]) / w
         free = math.hypot(d, e)
-        bound += abs(seg[ALPHA, k]) * (w * free + abs(pk))
-        bound += abs(seg[DELTA, k]) * (w * w * free + abs(pk))
-    if not math.isfinite(bound):
-        return np.inf
-    return bound
+        alpha = abs(seg[ALPHA, k])
+        delta = abs(seg[DELTA, k])
+        d1 += alpha * (w * free + pk) + delta * (w * w * free + pk)
+        d2 += alpha * (w * w * free + pk) + delta * (w * w * w * free + pk)
+    if not (math.isfinite(d1) and math.isfinite(d2)):
+        return np.inf, np.inf
+    return d1, d2
+
+
+@njit(cache=True)
+def _no_zero_between(fa, da, fb, db, h, curvature):
+    """Certificate that F > 0 on ``[a, a + h]`` from its values and slopes at both
+    ends and ``|F''| <= curvature``: the concave lower bounds
+    ``fa + da u - c u^2 / 2`` and ``fb - db w - c w^2 / 2`` (w = h - u) are
+    positive on intervals that together cover the bracket."""
+    if curvature <= 0.0:
+        return True
+    ua = (da + math.sqrt(da * da + 2.0 * curvature * fa)) / curvature
+    wb = (-db + math.sqrt(db * db + 2.0 * curvature * fb)) / curvature
+    return ua + wb >= h
 
 
 @njit(cache=True)
@@ -270,54 +286,134 @@ def _solve_bracket(seg, sc, which, lo, hi, flo, fhi, tol, eta, etad):
 
 
 @njit(cache=True)
+def _dip(seg, sc, ta, tb, fa, da, fb, db, curvature, tol, eta, etad):
+    """Search ``(ta, tb)`` (F > 0 at both ends) for a point where F <= 0.
+
+    Bisects the parts of the bracket the curvature certificate cannot clear,
+    left to right. Returns ``(lo, hi, kind)``: kind 0 = no zero, 1 = a sign
+    change in ``(lo, hi]`` (F(lo) > 0 >= F(hi), no zero before lo), 2 = a
+    touching zero at ``hi`` (the bracket shrank to ``tol`` with F still not
+    provably positive: a graze).
+    """
+    stack_a = np.empty(64)
+    stack_b = np.empty(64)
+    vals = np.empty((64, 4))
+    top = 0
+    stack_a[0] = ta
+    stack_b[0] = tb
+    vals[0, 0] = fa
+    vals[0, 1] = da
+    vals[0, 2] = fb
+    vals[0, 3] = db
+    top = 1
+    budget = 400
+    while top > 0:
+        top -= 1
+        a = stack_a[top]
+        b = stack_b[top]
+        f_a = vals[top, 0]
+        d_a = vals[top, 1]
+        f_b = vals[top, 2]
+        d_b = vals[top, 3]
+        if _no_zero_between(f_a, d_a, f_b, d_b, b - a, curvature):
+            continue
+        if b - a <= tol or budget <= 0 or top >= 62:
+            # cannot clear it: F comes within curvature * tol^2 of zero
+            return a, 0.5 * (a + b), 2 if b - a <= tol else 0
+        budget -= 1
+        m = 0.5 * (a + b)
+        f_m, d_m = event_function(seg, sc, m, eta, etad)
+        if f_m <= 0.0:
+            return a, m, 1
+        # right half first on the stack, so the left half is searched first
+        stack_a[top] = m
+        stack_b[top] = b
+        vals[top, 0] = f_m
+        vals[top, 1] = d_m
+        vals[top, 2] = f_b
+        vals[top, 3] = d_b
+        top += 1
+        stack_a[top] = a
+        stack_b[top] = m
+        vals[top, 0] = f_a
+        vals[top, 1] = d_a
+        vals[top, 2] = f_m
+        vals[top, 3] = d_m
+        top += 1
+    return ta, tb, 0
+
+
+@njit(cache=True)
 def next_event(seg, sc, t_end, h, tol, eta, etad):
     """First time ``t`` in ``(0, t_end]`` where the event function ``F`` reaches 0.
 
     ``F > 0`` just after the phase start (it may start at 0, right after an
     event). The interval is scanned in brackets no longer than ``h`` (a
     fraction of the shortest modal half-period): a sign change is solved to
-    ``tol``; without one, an interior minimum of F (``F'`` going from - to +) is
-    located and a dip to ``F <= 0`` is an event too, which catches pairs of
-    zeros and grazing zeros inside one bracket. Where ``F`` is far from 0 the
-    scan jumps ahead by ``F / max|F'|``, an interval that provably holds no zero.
+    ``tol``. A bracket without one is cleared by a curvature certificate
+    (``|F''|`` bounded over the phase, :func:`_no_zero_between`) or else
+    bisected where it cannot be cleared (:func:`_dip`), which finds pairs of
+    zeros and grazing zeros however close together. Where ``F`` is far from 0
+    the scan jumps ahead by ``F / max|F'|``, an interval that provably holds no
+    zero.
 
-    Returns ``(t, found)``; ``t`` is on the far side of the zero (F <= 0).
+    Returns ``(t, found)``; ``t`` is on the far side of the zero (F <= 0), or at
+    a touching zero.
     """
     f0, d0 = event_function(seg, sc, 0.0, eta, etad)
-    fa = f0 if f0 > 0.0 else 0.0
-    da = d0 if f0 > 0.0 else max(d0, 0.0)
-    lipschitz = derivative_bound(seg, sc)
+    slope_bound, curvature = derivative_bounds(seg, sc)
     ta = 0.0
+    if f0 > 0.0:
+        fa = f0
+        da = d0
+    else:
+        # phase start at an event (F(0) = 0): step off it to a point where
+        # F > 0 (a zero closer than h / 64 to the start is taken as immediate)
+        t1 = min(h / 64.0, t_end)
+        f1, d1 = event_function(seg, sc, t1, eta, etad)
+        if f1 <= 0.0:
+            tm = t1
+            for _ in range(60):
+                tm = 0.5 * tm
+                fm, dm = event_function(seg, sc, tm, eta, etad)
+                if fm > 0.0:
+                    lo, hi = _solve_bracket(seg, sc, 0, tm, t1, fm, f1, tol, eta, etad)
+                    return hi, True
+            return tm, True
+        ta = t1
+        fa = f1
+        da = d1
     while ta < t_end:
         step = h
         certified = False
-        if fa > 0.0 and lipschitz < np.inf:
-            safe = fa / lipschitz if lipschitz > 0.0 else t_end - ta
+        if slope_bound < np.inf:
+            safe = fa / slope_bound if slope_bound > 0.0 else t_end - ta
             if safe > step:
                 step = safe
                 certified = True
         tb = min(ta + step, t_end)
         fb, db = event_function(seg, sc, tb, eta, etad)
         if fb <= 0.0:
-            if fa > 0.0:
-                lo, hi = _solve_bracket(seg, sc, 0, ta, tb, fa, fb, tol, eta, etad)
-                return hi, True
-            # phase start with F(0) = 0: find a point where F > 0 first
-            tm = tb
-            for _ in range(60):
-                tm = 0.5 * tm
-                fm, dm = event_function(seg, sc, tm, eta, etad)
-                if fm > 0.0:
-                    lo, hi = _solve_bracket(seg, sc, 0, tm, tb, fm, fb, tol, eta, etad)
+            lo, hi = _solve_bracket(seg, sc, 0, ta, tb, fa, fb, tol, eta, etad)
+            return hi, True
+        if not certified:
+            if curvature < np.inf:
+                lo, hi, kind = _dip(seg, sc, ta, tb, fa, da, fb, db, curvature, tol, eta, etad)
+                if kind == 2 and sc[KIND] == KIND_SLIP:
+                    # the contact velocity touches zero: a stop if it can stick
                     return hi, True
-            return tm, True
-        if not certified and fa > 0.0 and da < 0.0 and db > 0.0:
-            lo, hi = _solve_bracket(seg, sc, 1, ta, tb, da, db, tol, eta, etad)
-            tm = 0.5 * (lo + hi)
-            fm, dm = event_function(seg, sc, tm, eta, etad)
-            if fm <= 0.0:
-                lo, hi = _solve_bracket(seg, sc, 0, ta, tm, fa, fm, tol, eta, etad)
-                return hi, True
+                if kind == 1:
+                    f_lo, _ = event_function(seg, sc, lo, eta, etad)
+                    f_hi, _ = event_function(seg, sc, hi, eta, etad)
+                    lo, hi = _solve_bracket(seg, sc, 0, lo, hi, f_lo, f_hi, tol, eta, etad)
+                    return hi, True
+            elif da < 0.0 and db > 0.0:  # no curvature bound: locate the interior minimum
+                lo, hi = _solve_bracket(seg, sc, 1, ta, tb, da, db, tol, eta, etad)
+                tm = 0.5 * (lo + hi)
+                fm, dm = event_function(seg, sc, tm, eta, etad)
+                if fm <= 0.0:
+                    lo, hi = _solve_bracket(seg, sc, 0, ta, tm, fa, fm, tol, eta, etad)
+                    return hi, True
         ta = tb
         fa = fb
         da = db
@@ -538,6 +634,8 @@ def run_cycle(x, xd, mode, stick_start, stats, ctx, work, rec, rec_n, tau_start,
     )
     while True:
         remaining = tau_end - tau
+        if remaining <= tol:  # an event right at the end of the run
+            break
         if mode == 0:
             d0 = _start_stick(
                 seg_stick,
