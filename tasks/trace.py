@@ -110,6 +110,7 @@ def trace_boundaries(
     atol: float = 1e-6,
     scan_points: int = 9,
     dense_points: int = 200,
+    guess_width: float = 0.02,
     fidelity: str = "balanced",
     **settings: object,
 ) -> TraceResult:
@@ -131,6 +132,8 @@ def trace_boundaries(
         Uniform probes per column for the monotonicity check (and brackets).
     dense_points : int
         Column scan of a non-monotone column.
+    guess_width : float
+        Relative distance of the two probes around each guess.
     fidelity, **settings
         Passed to :func:`tasks.classify`.
     """
@@ -173,16 +176,20 @@ def trace_boundaries(
                 continue
             lo[i], hi[i] = scan[j_lo], scan[j_hi]
         if guess is not None:
+            # probe 2 % either side of the guess: when it is close (the closed
+            # forms usually are), bisection starts from a bracket of 4 %
             g = np.asarray(guess, dtype=float)
-            inside = np.isfinite(lo) & np.isfinite(hi) & (g > lo) & (g < hi)
-            if inside.any():  # probe the guess: it halves the work when close
+            for probe in (g * (1.0 - guess_width), g * (1.0 + guess_width)):
+                inside = np.isfinite(lo) & np.isfinite(hi) & (probe > lo) & (probe < hi)
+                if not inside.any():
+                    continue
                 idx = np.flatnonzero(inside)
-                rg = classify(scene, r[idx], g[idx], **kw).regime
+                rg = classify(scene, r[idx], probe[idx], **kw).regime
                 count[idx] += 1
                 okg = rg >= 0
                 up = okg & is_below(rg)
-                lo[idx[up]] = g[idx[up]]
-                hi[idx[okg & ~up]] = g[idx[okg & ~up]]
+                lo[idx[up]] = probe[idx[up]]
+                hi[idx[okg & ~up]] = probe[idx[okg & ~up]]
         return lo, hi
 
     out = {}
