@@ -3,7 +3,7 @@
 A grid scene is a stack of (r, beta) planes, one per combination of the swept
 ratios (gamma, kappa). Each plane is cut into blocks of ``rows x cols`` points
 (a run of r values times a run of beta values) holding about
-``points_per_task`` points, so one task is ~``task_seconds`` of work
+``chunk_target`` points, so one task is ~``task_seconds`` of work
 (:mod:`study.cost`). A point list is cut into runs of points; a traced scene
 (``mode = "trace"``) into runs of r values.
 
@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from study.cost import TRACE_POINTS_PER_R, points_per_task, seconds_per_point
+from study.cost import TRACE_POINTS_PER_R, chunk_target, seconds_per_point
 from study.definition import SceneSpec, Study
 
 #: Bump when the meaning of a chunk changes, so old work folders are not reused.
@@ -65,7 +65,10 @@ class ScenePlan:
 
     @classmethod
     def build(cls, spec: SceneSpec, study: Study) -> ScenePlan:
-        target = study.chunk_points or points_per_task(spec.dof, study.fidelity, study.task_seconds)
+        work = spec.n_points * (TRACE_POINTS_PER_R if spec.mode == "trace" else 1)
+        target = study.chunk_points or chunk_target(
+            spec.dof, study.fidelity, study.task_seconds, work
+        )
         if spec.mode == "trace":
             block = (max(1, min(len(spec.r), target // TRACE_POINTS_PER_R)), 1)
         elif spec.points is not None:

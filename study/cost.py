@@ -3,7 +3,11 @@
 Used to size tasks (about ``task_seconds`` of work each, 0.1-2 s, not one task
 per point) and to print time estimates (``study plan``). The model is
 
-    seconds_per_point = BASE[fidelity] * (1 + DOF_SLOPE * (dof - 1))
+    seconds_per_point = BASE_SECONDS[fidelity] * (1 + DOF_SLOPE * (dof - 1))
+
+Measured with ``benchmarks/bench_scheduling.py``: on a 2-worker LocalCluster the
+scheduling overhead is about 2-5 % with tasks of 0.3-1.5 s and 12-14 % with
+tasks of 0.1 s, hence the target of ``[study] task_seconds`` = 0.5 s.
 
 Task sizes must not change between a run and its resume (they define the chunk
 keys), so they always use these fixed constants or ``[study] chunk_points``.
@@ -20,11 +24,21 @@ import numpy as np
 from tasks.fidelity import Settings
 from tasks.scene import Scene
 
-#: Seconds per point of a 1-DOF scene for each preset (measured with
-#: benchmarks/bench_scheduling.py on one core; typical maps mix all regimes).
-BASE_SECONDS: dict[str, float] = {"fast": 2.5e-4, "balanced": 1.0e-3, "exact": 4.0e-3}
+#: Seconds per point of a 1-DOF scene for each preset. Fitted to
+#: ``benchmarks/bench_scheduling.py calibrate`` (400 random points of a whole
+#: r x beta map, so all regimes mixed, one idle core, 1-5 DOF): measured
+#: 0.07-0.43 ms (fast), 0.09-0.69 ms (balanced), 0.10-0.73 ms (exact) per point
+#: from 1 to 5 DOF. Points near a resonance or a boundary cost more, no-motion
+#: points far less.
+BASE_SECONDS: dict[str, float] = {"fast": 8.0e-5, "balanced": 1.3e-4, "exact": 1.5e-4}
 #: Relative extra cost per additional degree of freedom.
-DOF_SLOPE = 0.5
+DOF_SLOPE = 1.25
+#: Shortest task the sizing aims at, in seconds: below ~0.1 s the fixed cost of
+#: a Dask task (scheduling, transfer, the client's save) is no longer small.
+MIN_TASK_SECONDS = 0.1
+#: A scene is cut into at least this many tasks when that keeps tasks above
+#: ``MIN_TASK_SECONDS``, so small studies still use every worker.
+MIN_TASKS_PER_SCENE = 16
 #: Classifications per r value when a boundary is traced (``mode = "trace"``):
 #: a scan plus bisection for each of the two boundaries.
 TRACE_POINTS_PER_R = 40
@@ -38,6 +52,18 @@ def seconds_per_point(dof: int, fidelity: str) -> float:
 def points_per_task(dof: int, fidelity: str, task_seconds: float) -> int:
     """Points in one task so that it takes about ``task_seconds``."""
     return max(1, int(round(task_seconds / seconds_per_point(dof, fidelity))))
+
+
+def chunk_target(dof: int, fidelity: str, task_seconds: float, n_points: int) -> int:
+    """Points per task of a scene of ``n_points``: ``task_seconds`` of work each, but
+    at least ``MIN_TASKS_PER_SCENE`` tasks as long as each keeps ``MIN_TASK_SECONDS``.
+
+    Depends on the study only (never on the cluster), so chunk keys are stable.
+    """
+    target = points_per_task(dof, fidelity, task_seconds)
+    floor = points_per_task(dof, fidelity, min(MIN_TASK_SECONDS, task_seconds))
+    spread = -(-n_points // MIN_TASKS_PER_SCENE)  # ceil
+    return max(1, min(target, max(floor, spread)))
 
 
 def calibrate(

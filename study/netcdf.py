@@ -39,7 +39,17 @@ from tasks.result import FIELDS
 
 #: Closed-form methods stored for every scene (``analysis.boundaries``).
 BOUNDARY_METHODS = ("paper", "exact")
-_BLOCK = 1 << 20  # elements per block of the lazily written fill values
+_BLOCK = 1 << 18  # elements per block of the lazily written fill values
+_BOUNDARY_BLOCK = 256  # r values per call of analysis.boundaries (bounded memory)
+#: Elements per netCDF (HDF5) chunk of a per-point variable: small enough that
+#: the bounded chunk cache below holds every chunk being filled, whatever the
+#: size of the grid (512 KiB of float64).
+NC_CHUNK_ELEMENTS = 1 << 16
+#: HDF5 chunk cache per variable while the result is written (bytes, slots).
+#: The library default (64 MiB per variable) would keep every chunk of a large
+#: map in memory until the file is closed: client memory would grow with it.
+NC_CACHE_BYTES = 2 << 20
+NC_CACHE_SLOTS = 1009
 
 COORD_ATTRS = {
     "r": {"long_name": "frequency ratio r = omega sqrt(m_1/k_1) (Eq. 7)", "units": "1"},
@@ -114,12 +124,15 @@ def _boundaries(scene, r: np.ndarray, method: str) -> tuple[np.ndarray, np.ndarr
     """``analysis.boundaries`` (the one home of the closed forms)."""
     from analysis import boundaries
 
-    cont, motion = boundaries(scene, np.asarray(r, dtype=float), method=method)
-    shape = np.shape(r)
-    return (
-        np.broadcast_to(np.asarray(cont, dtype=float), shape),
-        np.broadcast_to(np.asarray(motion, dtype=float), shape),
-    )
+    r = np.asarray(r, dtype=float)
+    cont = np.empty(r.shape)
+    motion = np.empty(r.shape)
+    for i in range(0, r.size, _BOUNDARY_BLOCK):  # blocks: the exact method's work
+        sl = slice(i, i + _BOUNDARY_BLOCK)  # arrays grow with the number of r values
+        c, m = boundaries(scene, r.ravel()[sl], method=method)
+        cont.ravel()[sl] = np.broadcast_to(np.asarray(c, dtype=float), r.ravel()[sl].shape)
+        motion.ravel()[sl] = np.broadcast_to(np.asarray(m, dtype=float), r.ravel()[sl].shape)
+    return cont, motion
 
 
 def _boundary_vars(plan: ScenePlan, axes: dict[str, np.ndarray]) -> dict[str, xr.Variable]:
@@ -182,11 +195,28 @@ def _data_layout(plan: ScenePlan) -> tuple[tuple[str, ...], tuple[int, ...], dic
     return dims, shape, {k: dt for k, (dt, _) in FIELDS.items()}
 
 
-def _fill_chunks_shape(shape: tuple[int, ...]) -> tuple[int, ...]:
-    """Blocks of at most ~_BLOCK elements along the last two dims (the rest one by one)."""
+def _nc_chunksizes(shape: tuple[int, ...]) -> tuple[int, ...]:
+    """netCDF chunks of at most NC_CHUNK_ELEMENTS: whole rows of beta (runs of points).
+
+    The work chunks are written row band after row band (r, then beta), so a
+    netCDF chunk is complete soon after it is first touched and then leaves
+    the cache for good.
+    """
     if len(shape) == 1:
-        return (min(shape[0], _BLOCK),)
+        return (max(1, min(shape[0], NC_CHUNK_ELEMENTS)),)
+    cols = max(1, min(shape[-1], NC_CHUNK_ELEMENTS))
+    rows = max(1, min(shape[-2], NC_CHUNK_ELEMENTS // cols))
+    return (*([1] * (len(shape) - 2)), rows, cols)
+
+
+def _fill_chunks_shape(shape: tuple[int, ...]) -> tuple[int, ...]:
+    """Blocks of at most ~_BLOCK elements along the last two dims (the rest one by one),
+    made of whole netCDF chunks."""
+    nc = _nc_chunksizes(shape)
+    if len(shape) == 1:
+        return (max(nc[0], _BLOCK // nc[0] * nc[0]),)
     rows = max(1, min(shape[-2], _BLOCK // max(1, shape[-1])))
+    rows = max(nc[-2], rows // nc[-2] * nc[-2])
     return (*([1] * (len(shape) - 2)), rows, shape[-1])
 
 
@@ -216,7 +246,11 @@ def scene_dataset(plan: ScenePlan, study: Study) -> tuple[xr.Dataset, dict[str, 
         else:
             base = name.rsplit("_", 1)[0]
             attrs["long_name"] = f"{BOUNDARY_ATTRS[base]}: {METHOD_NOTES['numerical']}"
-        enc: dict[str, object] = {"zlib": True, "complevel": 4}
+        enc: dict[str, object] = {
+            "zlib": True,
+            "complevel": 4,
+            "chunksizes": _nc_chunksizes(shape),
+        }
         if name == "regime":
             attrs.update(regimes.cf_flag_attributes())
             enc.update(_FillValue=regimes.NOT_COMPUTED, dtype="int8")
@@ -259,6 +293,8 @@ def write_result(
     """
     output = Path(output)
     tmp = output.with_name(f".{output.name}.{os.getpid()}{TMP_SUFFIX}")
+    cache = netCDF4.get_chunk_cache()
+    netCDF4.set_chunk_cache(NC_CACHE_BYTES, NC_CACHE_SLOTS)  # for every variable opened below
     try:
         built = {p.spec.name: scene_dataset(p, study) for p in plans}
         gattrs = global_attrs(study, command)
@@ -283,6 +319,7 @@ def write_result(
         os.replace(tmp, output)
         fsync_dir(output.parent)
     finally:
+        netCDF4.set_chunk_cache(*cache)
         tmp.unlink(missing_ok=True)
     return output
 

@@ -62,6 +62,11 @@ class RunSummary:
     computed: int
     wall_seconds: float
     compute_seconds: float
+    #: Wall seconds from the first submitted chunk to the last saved one
+    #: (no cluster start-up, no file assembly).
+    compute_wall_seconds: float = 0.0
+    #: Wall seconds spent assembling the result file.
+    write_seconds: float = 0.0
 
 
 def default_workers() -> int:
@@ -272,16 +277,20 @@ def run_study(
             + (f" (deleted {stale} partial files of a killed run)" if stale else ""),
             file=stream,
         )
-        compute_seconds = 0.0
+        compute_seconds = compute_wall = 0.0
         if missing:
             bar = Progress(n_points, reused_points, stream=stream, enabled=progress)
             with connect(client, scheduler, scheduler_file, workers, stream) as c:
                 bar.start()
+                t1 = time.perf_counter()
                 compute_seconds = _compute(c, plans, work, bar, retries, saved)
+                compute_wall = time.perf_counter() - t1
             bar.close()
         from study.netcdf import write_result
 
+        t2 = time.perf_counter()
         write_result(study, plans, work, output, command)
+        write_seconds = time.perf_counter() - t2
         finished = True
     except KeyboardInterrupt:
         raise StudyInterrupted(
@@ -300,7 +309,17 @@ def run_study(
         f"{reused:,} reused) in {wall:.1f} s",
         file=stream,
     )
-    return RunSummary(output, n_points, n_chunks, reused, computed, wall, compute_seconds)
+    return RunSummary(
+        output,
+        n_points,
+        n_chunks,
+        reused,
+        computed,
+        wall,
+        compute_seconds,
+        compute_wall,
+        write_seconds,
+    )
 
 
 def _pending(plans: list[ScenePlan], work: WorkDir) -> Iterator[tuple[ScenePlan, dict, Chunk]]:
