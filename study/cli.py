@@ -1,4 +1,4 @@
-"""Command line: ``study run | plan | report`` (also ``python -m study``).
+"""Command line: ``study run | plan | report | bench`` (also ``python -m study``).
 
 Exit codes: 0 success, 1 a chunk failed, 2 bad input (one line on stderr,
 nothing written), 130 interrupted by Ctrl-C (SIGINT) and 143 stopped by SIGTERM
@@ -81,6 +81,14 @@ def build_parser() -> argparse.ArgumentParser:
     rep = sub.add_parser("report", help="write the analysis report of a result file")
     rep.add_argument("result", type=Path)
     rep.add_argument("-o", "--output", type=Path, required=True, metavar="DIR")
+
+    bench = sub.add_parser(
+        "bench",
+        help="time and accuracy of every fidelity preset and of the paper's method "
+        "(bench.md, pareto.png)",
+    )
+    bench.add_argument("-o", "--output", type=Path, required=True, metavar="DIR")
+    bench.add_argument("--quick", action="store_true", help="a smaller point set (~15 s)")
     return parser
 
 
@@ -161,9 +169,22 @@ def cmd_report(args) -> int:
     return 0
 
 
+def cmd_bench(args) -> int:
+    if args.output.exists() and not args.output.is_dir():
+        raise StudyError("-o", f"output is not a directory: {args.output}")
+    from study.bench import main_bench
+
+    args.output.mkdir(parents=True, exist_ok=True)
+    path = main_bench(args.output, quick=args.quick, log=lambda line: print(line, file=sys.stderr))
+    print(f"study: wrote {path} and {path.with_name('pareto.png')}", file=sys.stderr)
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    handler = {"run": cmd_run, "plan": cmd_plan, "report": cmd_report}[args.command]
+    handler = {"run": cmd_run, "plan": cmd_plan, "report": cmd_report, "bench": cmd_bench}[
+        args.command
+    ]
     previous = None
     if args.command == "run":
         previous = signal.signal(signal.SIGTERM, _Terminated())

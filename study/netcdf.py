@@ -68,7 +68,6 @@ BOUNDARY_ATTRS = {
 METHOD_NOTES = {
     "paper": "closed form of Marino & Cicirello (2021), Eqs. 13, 53 with S = 1 (MODEL.md 4.1-4.2)",
     "exact": "exact antisymmetric continuous-motion limit (MODEL.md 4.3)",
-    "numerical": "traced by simulation (tasks.trace_boundaries)",
 }
 PACKAGES = (
     "frictionregimes",
@@ -188,7 +187,7 @@ def _data_layout(plan: ScenePlan) -> tuple[tuple[str, ...], tuple[int, ...], dic
         return (
             (*sweeps, "r"),
             (*spec.sweep_shape, len(spec.r)),
-            dict.fromkeys(TRACE_FIELDS, "float64"),
+            {name: dt for name, (dt, _) in TRACE_FIELDS.items()},
         )
     dims = (*sweeps, "r", "beta")
     shape = (*spec.sweep_shape, len(spec.r), len(spec.beta))
@@ -241,11 +240,7 @@ def scene_dataset(plan: ScenePlan, study: Study) -> tuple[xr.Dataset, dict[str, 
     encoding: dict[str, dict] = {name: {"_FillValue": None} for name in coords}
     for name, dt in variables.items():
         attrs = {"units": "1"}
-        if name in FIELDS:
-            attrs["long_name"] = FIELDS[name][1]
-        else:
-            base = name.rsplit("_", 1)[0]
-            attrs["long_name"] = f"{BOUNDARY_ATTRS[base]}: {METHOD_NOTES['numerical']}"
+        attrs["long_name"] = FIELDS[name][1] if name in FIELDS else TRACE_FIELDS[name][1]
         enc: dict[str, object] = {
             "zlib": True,
             "complevel": 4,

@@ -36,7 +36,6 @@ from typing import TextIO
 
 from distributed.diagnostics.plugin import WorkerPlugin
 
-from study import trace
 from study.chunks import Chunk, ScenePlan, plan
 from study.compute import compute_chunk
 from study.definition import Study
@@ -195,13 +194,6 @@ def _check_runnable(study: Study, output: Path) -> None:
         raise StudyError("-o", f"output directory does not exist: {output.parent}")
     if output.is_dir():
         raise StudyError("-o", f"output is a directory: {output}")
-    for i, s in enumerate(study.scenes):
-        if s.mode == "trace" and not trace.available():
-            raise StudyError(
-                f"scene[{i}].mode",
-                "'trace' needs tasks.trace_boundaries, which is not available in this version",
-                study.source,
-            )
 
 
 def run_study(

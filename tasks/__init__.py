@@ -11,6 +11,7 @@ from tasks.classifier import classify
 from tasks.fidelity import PRESETS, Settings, resolve
 from tasks.result import FIELDS, ClassifyResult
 from tasks.scene import Scene
+from tasks.trace import TraceResult, trace_boundaries
 from tasks.trajectory import Trajectory, trajectory
 
 __all__ = [
@@ -19,9 +20,11 @@ __all__ = [
     "ClassifyResult",
     "Scene",
     "Settings",
+    "TraceResult",
     "Trajectory",
     "classify",
     "regimes",
     "resolve",
+    "trace_boundaries",
     "trajectory",
 ]
