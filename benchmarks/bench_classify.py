@@ -32,7 +32,6 @@ import argparse
 import json
 import math
 import os
-import platform
 import subprocess
 import sys
 import tempfile
@@ -47,9 +46,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-import numba  # noqa: E402
-import scipy  # noqa: E402
-
+from study.bench import machine  # noqa: E402
 from tasks import PRESETS, Scene, classify, regimes  # noqa: E402
 from tasks.baseline import paper_method  # noqa: E402
 
@@ -62,30 +59,6 @@ SEED = 20210406
 
 
 # ----------------------------------------------------------------------------- helpers
-def machine() -> dict[str, str]:
-    """Platform, CPUs, versions and load, for the tables' header."""
-    cpu = platform.processor() or ""
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    try:
-        usable = len(os.sched_getaffinity(0))
-    except AttributeError:
-        usable = os.cpu_count() or 1
-    load = ", ".join(f"{v:.2f}" for v in os.getloadavg()) if hasattr(os, "getloadavg") else "?"
-    return {
-        "platform": platform.platform(),
-        "cpu": f"{cpu} ({os.cpu_count()} logical CPUs, {usable} usable)",
-        "python": platform.python_version(),
-        "numpy / scipy / numba": f"{np.__version__} / {scipy.__version__} / {numba.__version__}",
-        "load average (1, 5, 15 min)": load,
-    }
-
-
 def table(header: list[str], rows: list[list[object]]) -> str:
     """A Markdown table."""
     lines = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]

@@ -15,12 +15,12 @@ half a step of the truth, so agreement means a difference of at most 1).
 from __future__ import annotations
 
 import argparse
-import platform
 import time
 
 import numpy as np
 
 from analysis import boundaries
+from study.bench import machine
 from tasks import Scene, classify, regimes
 from tasks.trace import trace_boundaries
 
@@ -55,7 +55,10 @@ def main() -> None:
     n_r = 8 if args.quick else 24
     step = 4e-3 if args.quick else 1e-3
     classify(Scene("ground", 1), 1.3, 0.2)  # compile outside the timings
-    print(f"machine: {platform.platform()}, {platform.processor() or 'cpu'}, one process")
+    print("| machine | |\n|---|---|")
+    for key, value in machine().items():
+        print(f"| {key} | {value} |")
+    print("\none process")
     print(f"tolerance: beta step {step:g}, {n_r} values of r per scene\n")
     print("| scene | method | points | seconds | max diff / grid step (cont., motion) |")
     print("|---|---|---|---|---|")

@@ -420,6 +420,33 @@ def next_event(seg, sc, t_end, h, tol, eta, etad):
     return t_end, False
 
 
+# Entries of the per-point context tuple ``ctx`` (built by :func:`_context`).
+CTX_SEG_SLIP = 0
+CTX_SEG_STICK = 1
+CTX_SC = 2
+CTX_BETA = 3
+CTX_P = 4
+CTX_K = 5
+CTX_B = 6
+CTX_W = 7
+CTX_T = 8
+CTX_PHI = 9
+CTX_PHI_T_GAMMA = 10
+CTX_PHI_S = 11
+CTX_PHI_S_T_GAMMA_S = 12
+CTX_PROJ = 13
+CTX_F_R2 = 14
+CTX_DSTAT_R2 = 15
+CTX_G_LOAD = 16
+CTX_G_COS = 17
+CTX_G_D0 = 18
+CTX_H_SLIP = 19
+CTX_H_STICK = 20
+CTX_TOL = 21
+CTX_STICK_MIN = 22
+CTX_MAX_EVENTS = 23
+CTX_MAX_WORK = 24
+
 TWO_PI = 2.0 * math.pi
 
 # Entries of the per-cycle statistics array.
@@ -877,11 +904,11 @@ def _fd_jacobian(y0, y1, mode, ctx, work, scale, J, theta):
 
     Returns the periods used, or -1 if a perturbed period left the chart.
     """
-    n = ctx[4].shape[0]
-    b = ctx[6]
-    w = ctx[7]
-    T = ctx[8]
-    proj = ctx[13]
+    n = ctx[CTX_P].shape[0]
+    b = ctx[CTX_B]
+    w = ctx[CTX_W]
+    T = ctx[CTX_T]
+    proj = ctx[CTX_PROJ]
     dim = y0.shape[0]
     probe = np.empty(N_STATS)
     for k in range(dim):
@@ -916,10 +943,10 @@ def _shoot(X0, mode, stats, ctx, work, rtol, floor, max_newton, theta):
     statistics of the verified period ``X -> P(X)``.
     """
     n = X0.shape[0] // 2
-    b = ctx[6]
-    w = ctx[7]
-    T = ctx[8]
-    proj = ctx[13]
+    b = ctx[CTX_B]
+    w = ctx[CTX_W]
+    T = ctx[CTX_T]
+    proj = ctx[CTX_PROJ]
     cycles = 0
     y0 = _reduce(X0, mode, b, w, proj)
     X0 = _expand(y0, mode, n, w, T)
@@ -1119,10 +1146,10 @@ def _context(r, beta, scene, settings):
 def start_phase(X, beta, ctx, theta):
     """Phase a section state starts in: sliding with the sign of ``b . x'``, or
     (at rest relative to the contact) stuck if ``|g| <= beta``."""
-    p = ctx[4]
-    K = ctx[5]
-    b = ctx[6]
-    g_load = ctx[16]
+    p = ctx[CTX_P]
+    K = ctx[CTX_K]
+    b = ctx[CTX_B]
+    g_load = ctx[CTX_G_LOAD]
     n = X.shape[0] // 2
     v = _dot(b, X[n:])
     if v > 0.0:
@@ -1189,7 +1216,7 @@ def simulate_point(r, beta, scene, settings, out, final):
     final[2 * n] = mode
     final[2 * n + 1] = theta
     if beta == 0.0:  # undamped linear system: continuous by definition
-        amp = _linear_amplitude(ctx[0])
+        amp = _linear_amplitude(ctx[CTX_SEG_SLIP])
         if not math.isfinite(amp):  # ... unless exactly at a resonance
             _undetermined(out, UNBOUNDED, 0, ic_used)
             return
@@ -1202,7 +1229,7 @@ def simulate_point(r, beta, scene, settings, out, final):
         out[OUT_PERIOD] = 1.0
         out[OUT_IC] = ic_used
         return
-    if _resonant_growth(ctx[0], ctx[14], beta):
+    if _resonant_growth(ctx[CTX_SEG_SLIP], ctx[CTX_F_R2], beta):
         _undetermined(out, UNBOUNDED, 0, ic_used)
         return
     stats = np.zeros(N_STATS)
@@ -1213,7 +1240,7 @@ def simulate_point(r, beta, scene, settings, out, final):
     X_prev2 = X.copy()
     diff_prev = np.inf
     # scale of the motion: the static response to the load amplitude, or more
-    ref = max(_max_abs(X), _max_abs(np.linalg.solve(ctx[5], ctx[4])), 1e-300)
+    ref = max(_max_abs(X), _max_abs(np.linalg.solve(ctx[CTX_K], ctx[CTX_P])), 1e-300)
     stick_start = 0.0
     cycles = 0
     next_shot = shooting_after
@@ -1327,7 +1354,7 @@ def simulate_point(r, beta, scene, settings, out, final):
             cycles += used
             if ok:
                 final[: 2 * n] = Xs
-                final[2 * n] = start_phase(Xs, ctx[3], ctx, theta) if mode != 0 else 0
+                final[2 * n] = start_phase(Xs, ctx[CTX_BETA], ctx, theta) if mode != 0 else 0
                 final[2 * n + 1] = theta
                 _finish(out, stats, stats_prev, 1, cycles, ic_used)
                 return
@@ -1392,7 +1419,7 @@ def trace_cycles(r, beta, scene, settings, X0, mode0, theta, n_cycles, max_recor
 def sample_states(ctx, work, rec, taus):
     """States ``(x, x')`` at the absolute times ``taus`` (ascending) from the records."""
     n = (rec.shape[1] - REC_X) // 2
-    beta = ctx[3]
+    beta = ctx[CTX_BETA]
     out = np.empty((taus.shape[0], 2 * n))
     x = np.empty(n)
     xd = np.empty(n)
@@ -1408,30 +1435,41 @@ def sample_states(ctx, work, rec, taus):
             xd[k] = rec[j, REC_X + n + k]
         eta, etad, eta_s, etad_s, q = work
         if mode == 0:
-            seg = ctx[1]
+            seg = ctx[CTX_SEG_STICK]
             d0 = _start_stick(
                 seg,
-                ctx[2],
+                ctx[CTX_SC],
                 x,
                 xd,
                 tau0,
                 beta,
-                ctx[6],
-                ctx[7],
-                ctx[13],
-                ctx[12],
-                ctx[15],
-                ctx[17],
-                ctx[18],
+                ctx[CTX_B],
+                ctx[CTX_W],
+                ctx[CTX_PROJ],
+                ctx[CTX_PHI_S_T_GAMMA_S],
+                ctx[CTX_DSTAT_R2],
+                ctx[CTX_G_COS],
+                ctx[CTX_G_D0],
                 q,
             )
-            evaluate(seg, ctx[2], tau - tau0, eta_s, etad_s)
-            _stick_state(ctx[11], ctx[8], ctx[7], d0, eta_s, etad_s, q, x, xd)
+            evaluate(seg, ctx[CTX_SC], tau - tau0, eta_s, etad_s)
+            _stick_state(ctx[CTX_PHI_S], ctx[CTX_T], ctx[CTX_W], d0, eta_s, etad_s, q, x, xd)
         else:
-            seg = ctx[0]
-            _start_slip(seg, ctx[2], x, xd, tau0, float(mode), 0.0, beta, ctx[14], ctx[10])
-            evaluate(seg, ctx[2], tau - tau0, eta, etad)
-            _slip_state(ctx[9], eta, etad, x, xd)
+            seg = ctx[CTX_SEG_SLIP]
+            _start_slip(
+                seg,
+                ctx[CTX_SC],
+                x,
+                xd,
+                tau0,
+                float(mode),
+                0.0,
+                beta,
+                ctx[CTX_F_R2],
+                ctx[CTX_PHI_T_GAMMA],
+            )
+            evaluate(seg, ctx[CTX_SC], tau - tau0, eta, etad)
+            _slip_state(ctx[CTX_PHI], eta, etad, x, xd)
         out[i, :n] = x
         out[i, n:] = xd
     return out
