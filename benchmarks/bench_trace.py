@@ -37,15 +37,18 @@ def dense_boundaries(scene, r, beta):
     reg = classify(scene, R, B).regime
     bc = np.full(r.size, np.nan)
     bm = np.full(r.size, np.nan)
+    undetermined = 0
     for i in range(r.size):
-        col = reg[i]
+        ok = reg[i] >= 0  # undetermined points (slow, right at a boundary) are skipped
+        undetermined += int((~ok).sum())
+        col, b = reg[i][ok], beta[ok]
         not_cont = np.flatnonzero(col != regimes.CONTINUOUS)
         if not_cont.size and not_cont[0] > 0:
-            bc[i] = 0.5 * (beta[not_cont[0] - 1] + beta[not_cont[0]])
+            bc[i] = 0.5 * (b[not_cont[0] - 1] + b[not_cont[0]])
         moving = np.flatnonzero(col != regimes.NO_MOTION)
-        if moving.size and moving[-1] + 1 < beta.size:
-            bm[i] = 0.5 * (beta[moving[-1]] + beta[moving[-1] + 1])
-    return bc, bm, reg.size
+        if moving.size and moving[-1] + 1 < b.size:
+            bm[i] = 0.5 * (b[moving[-1]] + b[moving[-1] + 1])
+    return bc, bm, reg.size, undetermined
 
 
 def main() -> None:
@@ -69,9 +72,9 @@ def main() -> None:
         top = min(1.25 * float(np.nanmax(np.concatenate([finite, gc]))), 3.0)
         beta = np.arange(0.0, top + step, step)
         t0 = time.perf_counter()
-        dc, dm, n_dense = dense_boundaries(scene, r, beta)
+        dc, dm, n_dense, n_undet = dense_boundaries(scene, r, beta)
         t_dense = time.perf_counter() - t0
-        rows = [("dense grid", n_dense, t_dense, dc, dm)]
+        rows = [(f"dense grid ({n_undet} undetermined)", n_dense, t_dense, dc, dm)]
         for label, guesses in (
             ("trace, closed-form start", (gc, gm)),
             ("trace, blind", (None, None)),

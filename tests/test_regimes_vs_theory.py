@@ -113,3 +113,29 @@ def test_reference_beats_the_papers_baseline(shared_dir):
     for c in cases:
         res = classify(_scene_of(c), c["r"], c["b"])
         assert regimes.name(int(res.regime)) == c["reference_regime"], c["id"]
+
+
+def test_exact_boundary_agrees_at_least_as_often_as_the_papers(shared_dir):
+    """On simulated maps the exact boundary (MODEL.md 4.3) scores at least as well as
+    the paper's S = 1: on the reference's near-boundary points and on a map of the
+    low-r range of Fig. 4, where S > 1 matters."""
+    from analysis.scoring import agreement
+
+    near = [c for c in _reference_cases(shared_dir) if c["category"] == "near"]
+    hits = {"paper": 0, "exact": 0}
+    for c in near:
+        scene = _scene_of(c)
+        sim = classify(scene, c["r"], c["b"]).regime
+        for method in hits:
+            hits[method] += int(predict(scene, c["r"], c["b"], method=method) == sim)
+    assert hits["exact"] >= hits["paper"], hits
+
+    scene = Scene("ground", 2, 1, gamma=1.0, kappa=1.0)
+    r = np.linspace(0.3, 0.9, 31)
+    beta = np.round(np.linspace(0.0, 1.2, 25), 12)  # 1.0, not 0.9999999999999999
+    sim = classify(scene, r[:, None], beta[None, :]).regime
+    scores = {}
+    for method in ("paper", "exact"):
+        bc, bm = boundaries(scene, r, method=method)
+        scores[method] = agreement(sim, r, beta, bc, bm).accuracy
+    assert scores["exact"] >= scores["paper"] and scores["exact"] > 0.99, scores
