@@ -2,8 +2,17 @@
 
 No Dask, no files. Public API::
 
-    from tasks import Scene, classify, regimes
-    res = classify(Scene("ground", 2, contact_mass=1, gamma=1.0, kappa=1.0), r, beta)
+    from tasks import Scene, classify, regimes, trajectory, trace_boundaries
+    scene = Scene("ground", 2, contact_mass=1, gamma=1.0, kappa=1.0)
+    res = classify(scene, r, beta)            # regime codes and diagnostics per point
+    tr = trajectory(scene, 1.5, 0.3)          # the converged period, event by event
+    tb = trace_boundaries(scene, r, (0, 2))   # numerical boundaries along r
+
+Modules: :mod:`tasks.scene` (the chain), :mod:`tasks.model` (modal data),
+:mod:`tasks.kernel` (the compiled simulator), :mod:`tasks.classifier`,
+:mod:`tasks.trajectory`, :mod:`tasks.trace`, :mod:`tasks.fidelity` (presets),
+:mod:`tasks.regimes` (the codes), :mod:`tasks.result`, :mod:`tasks.baseline`
+(the paper's method, for benchmarks).
 """
 
 from tasks import regimes

@@ -12,7 +12,10 @@ FIELDS: dict[str, tuple[str, str]] = {
     "regime": ("int8", "steady-state motion regime code (tasks.regimes)"),
     "converged": ("bool", "a periodic steady state was found and verified"),
     "cycles": ("int32", "excitation cycles simulated (shooting cycles included)"),
-    "stops_per_cycle": ("int16", "stick phases per excitation period in steady state"),
+    "stops_per_cycle": (
+        "int16",
+        "stick phases in one steady-state period (of `period` excitation cycles)",
+    ),
     "slip_amplitude": ("float64", "half peak-to-peak relative displacement of the contact"),
     "stick_fraction": ("float64", "fraction of the period the contact is stuck in steady state"),
     "period": ("int8", "period of the steady state in excitation cycles (1 or 2; 0 if none)"),
