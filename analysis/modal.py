@@ -38,6 +38,7 @@ import numpy as np
 from scipy.linalg import eigh
 from scipy.sparse.csgraph import connected_components
 
+from tasks.model import scene_modes
 from tasks.scene import Scene
 
 NOISE = 1e-13
@@ -136,18 +137,16 @@ def contact_modes(scene: Scene) -> ContactModes:
     -------
     ContactModes
     """
-    K = scene.stiffness_matrix()
-    gamma = scene.mass_ratios
-    b = scene.contact_vector()
-    p_hat = scene.load_vector(1.0)  # e_1, or Gamma 1 for the base wall (times r^2)
-    alpha = 2 if scene.contact == "base" else 0
-    lam, phi = eigh(K, np.diag(gamma))
+    sliding = scene_modes(scene)  # the simulator's modal data: one home for the modes
+    K, gamma, b = sliding.stiffness, sliding.gamma, sliding.b
+    p_hat = sliding.p0  # e_1, or Gamma 1 for the base wall (times r^2)
+    alpha = 2 if sliding.load_scales_r2 else 0
+    lam, phi = sliding.lam.copy(), sliding.phi.copy()
+    b_gamma_b, g_load = sliding.b_gamma_b, sliding.g_load
     # |phi_i . v| <= ||Gamma^-1/2 v|| because phi_i has unit Gamma-norm.
-    cb = _clean(b @ phi, np.sqrt(np.sum(b * b / gamma)))
+    cb = _clean(b @ phi, np.sqrt(b_gamma_b))
     p0 = _clean(p_hat @ phi, np.sqrt(np.sum(p_hat * p_hat / gamma)))
-    b_gamma_b = float(np.sum(b * b / gamma))
-    g_load = (b / gamma) / b_gamma_b
-    T, _ = scene.stuck_basis()
+    T = sliding.T
     lam_s, z_s = _held_modes(K, gamma, T, g_load, p_hat)
     for arr in (lam, phi, cb, p0, lam_s, z_s):
         arr.setflags(write=False)
