@@ -132,6 +132,7 @@ def trajectory(
     n = scene.dof
     result = None
     theta = 0.0
+    ctx, work = kernel._context(r, beta, scene_args, args)[:2]
     if isinstance(start, str) and start == "steady":
         out, final = kernel.run_points(np.array([r]), np.array([beta]), scene_args, args)
         result = result_from_kernel(out, ())
@@ -147,14 +148,12 @@ def trajectory(
     else:
         x0, xd0 = (np.asarray(v, dtype=float).reshape(n) for v in start)
         X0 = np.concatenate([x0, xd0])
-        ctx = kernel._context(r, beta, scene_args, args)[0]
         mode0 = int(kernel.start_phase(X0, beta, ctx, 0.0))
     cycles = 1 if cycles is None else int(cycles)
     rec, n_rec, _, _, status = kernel.trace_cycles(
         r, beta, scene_args, args, X0, mode0, theta, cycles, max_records
     )
     rec = rec[:n_rec].copy()
-    ctx, work = kernel._context(r, beta, scene_args, args)[:2]
     x = rec[:, kernel.REC_X : kernel.REC_X + n]
     return Trajectory(
         scene=scene,
