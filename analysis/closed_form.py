@@ -1,7 +1,7 @@
-"""Closed-form boundaries of the motion regimes (Marino & Cicirello 2021; MODEL.md 4).
+"""Closed-form boundaries of the motion regimes (Marino & Cicirello 2021; docs/theory.md 4).
 
 Every configuration of :class:`tasks.scene.Scene` is one linear chain with one
-Coulomb contact (MODEL.md 2, :mod:`analysis.modal`):
+Coulomb contact (docs/theory.md 2, :mod:`analysis.modal`):
 
     M x'' + K x = p cos(tau) + F_c b,     M = r^2 diag(gamma),
 
@@ -22,7 +22,7 @@ mass-normalised modes ``psi_i`` (Eq. 26) and ``R_i = 1 / Omega_i`` (Eq. 40):
     beta_continuous = sqrt(V_b^2 / (U_b^2 + (S / m_b)^2)),
 
 with ``S = 1`` (``method="paper"``) or the generalised Den Hartog ``S``
-(``method="exact"``, MODEL.md 4.3; Eq. 16 for one DOF), see :func:`generalised_S`.
+(``method="exact"``, docs/theory.md 4.3; Eq. 16 for one DOF), see :func:`generalised_S`.
 For the 2DOF mass contact this is Eq. 123: the paper's equivalent system has
 ``U_d = G U_b`` and friction ``beta / G``, so ``G sqrt(V_d^2 / (U_d^2 + r^-4))``
 is the same number.
@@ -87,7 +87,8 @@ __all__ = [
 ]
 
 METHODS = ("paper", "exact")
-"""``"paper"``: S = 1 (Eqs. 13, 53, 123). ``"exact"``: generalised Den Hartog S (MODEL.md 4.3)."""
+"""``"paper"``: S = 1 (Eqs. 13, 53, 123).
+``"exact"``: generalised Den Hartog S (docs/theory.md 4.3)."""
 
 POINTS_PER_PERIOD = 16
 """Grid points per period of the fastest mode in the search for S."""
@@ -215,7 +216,7 @@ def _terms(modes: ContactModes, r: np.ndarray, scaled: bool) -> _Terms:
 def _ratio(tau: np.ndarray, Om: np.ndarray, A: np.ndarray, C: np.ndarray) -> np.ndarray:
     """``m_b h(tau) / sin(tau)`` (times the scale) for tau of shape (n_r, n_tau).
 
-    With ``h`` of MODEL.md 4.3 written as
+    With ``h`` of docs/theory.md 4.3 written as
     ``U cos tau + sum c_i^2 R_i [sin(Om tau) - t_i cos(Om tau)]
     = sum c_i^2 R_i [sin(Om tau) + t_i (cos tau - cos(Om tau))]``,
     ``A`` is the coefficient of ``sin(Om tau)`` and ``C`` that of
@@ -368,7 +369,7 @@ def response_functions(scene: Scene, r: ArrayLike) -> tuple[np.ndarray, np.ndarr
 
 
 def generalised_S(scene: Scene, r: ArrayLike) -> np.ndarray:
-    """Generalised Den Hartog S of MODEL.md 4.3 (Eq. 16 for one DOF).
+    """Generalised Den Hartog S of docs/theory.md 4.3 (Eq. 16 for one DOF).
 
     ``S = max(1, sup_{0 < tau < pi} m_b h(tau) / sin(tau))`` with
 
@@ -419,9 +420,9 @@ def continuous_bound(scene: Scene, r: ArrayLike, method: str = "paper") -> np.nd
 
     ``sqrt(V_b^2 / (U_b^2 + (S / m_b)^2))`` with ``S = 1`` (``"paper"``: Eqs. 13
     with S = 1, 53, 56, 59, 123; Tables 1-3 with the Table 2 misprint fixed,
-    MODEL.md 6) or S of :func:`generalised_S` (``"exact"``: the largest beta
+    docs/theory.md 6) or S of :func:`generalised_S` (``"exact"``: the largest beta
     admitting the antisymmetric continuous motion, conditions (a)-(c) of
-    MODEL.md 4.3). ``"exact" <= "paper"``, with equality where S = 1.
+    docs/theory.md 4.3). ``"exact" <= "paper"``, with equality where S = 1.
 
     Parameters
     ----------
@@ -502,8 +503,8 @@ def boundaries(scene: Scene, r: ArrayLike, method: str = "paper") -> tuple[np.nd
         Frequency ratios r > 0 (scalar or any shape).
     method : {"paper", "exact"}
         ``"paper"``: the paper's formulas (S = 1; Tables 1-3, Eqs. 13, 53, 63,
-        89, 94, 123, 128; Table 2 misprint fixed, MODEL.md 6). ``"exact"``: the
-        continuous bound of MODEL.md 4.3 (generalised S); the motion bound is the
+        89, 94, 123, 128; Table 2 misprint fixed, docs/theory.md 6). ``"exact"``: the
+        continuous bound of docs/theory.md 4.3 (generalised S); the motion bound is the
         same for both (it is exact for the held contact).
 
     Returns
@@ -511,7 +512,7 @@ def boundaries(scene: Scene, r: ArrayLike, method: str = "paper") -> tuple[np.nd
     beta_continuous, beta_motion : ndarray
         Arrays of shape ``np.shape(r)``: continuous motion for
         ``beta < beta_continuous``, no motion for ``beta >= beta_motion``.
-        The two can cross (MODEL.md 7); :func:`predict` gives no motion there.
+        The two can cross (docs/theory.md 7); :func:`predict` gives no motion there.
     """
     _check_method(method)
     return continuous_bound(scene, r, method), motion_bound(scene, r)
@@ -569,7 +570,7 @@ def sliding_resonances(scene: Scene) -> np.ndarray:
 
 
 def slip_velocity(scene: Scene, r: float, beta: float, tau: ArrayLike) -> np.ndarray:
-    """Contact velocity ``b . x'(tau)`` of the antisymmetric continuous motion (MODEL.md 4.3).
+    """Contact velocity ``b . x'(tau)`` of the antisymmetric continuous motion (docs/theory.md 4.3).
 
     Reversal at tau = 0 with ``b . x(0) = V_b cos(phi) > 0``; for ``0 < tau < pi``
 

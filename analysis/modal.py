@@ -1,6 +1,6 @@
 """Modal data of a scene for the closed-form boundaries (independent of r and beta).
 
-Every configuration of :class:`tasks.scene.Scene` is written as (MODEL.md 2)
+Every configuration of :class:`tasks.scene.Scene` is written as (docs/theory.md 2)
 
     M x'' + K x = p cos(tau) + F_c b,     M = r^2 Gamma,  Gamma = diag(gamma),
 

@@ -382,7 +382,7 @@ def build_report(
         "",
         f"Result file `{Path(result_path).name}`, {len(scenes)} scene(s); report written {stamp}.",
         'Theory = closed-form boundaries ("paper": Marino & Cicirello 2021 with S = 1; '
-        '"exact": MODEL.md 4.3); predicted continuous for beta < beta_continuous, no motion '
+        '"exact": docs/theory.md 4.3); predicted continuous for beta < beta_continuous, no motion '
         "for beta >= beta_motion, stick-slip otherwise. Accuracy counts determined points only.",
         "",
     ]

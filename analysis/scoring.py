@@ -1,6 +1,6 @@
 """Agreement between a simulated regime map and the closed-form boundaries.
 
-The closed forms (MODEL.md section 4) give, at each r, two thresholds on beta:
+The closed forms (docs/theory.md section 4) give, at each r, two thresholds on beta:
 ``beta_continuous`` (continuous / stick-slip) and ``beta_motion`` (stick-slip /
 no motion). :func:`regime_from_bounds` turns them into a predicted regime (the
 paper's Tables 1-3); :func:`agreement` and :func:`agreement_points` compare the

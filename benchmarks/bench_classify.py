@@ -13,7 +13,7 @@ gamma = kappa = 1; a seeded random sample, r in [0.05, 2.5], beta in [0, 1.2]):
    reported apart, then the best of several repeats) and the baseline (the
    paper's RK45 + events, 100 cycles from rest, pure scipy): points per second,
    the speed ratio, and their agreement on the sample;
-2. agreement with the reference labels of ``public_cases.json``
+2. agreement with the reference labels of ``tests/data/reference_cases.json``
    (``reference_regime``): all 170 cases for ``classify``, as many as
    ``--baseline-cases`` says for the baseline (default: all);
 3. a 250 x 100 (r, beta) panel of the scene with ``classify`` on one core, and
@@ -50,7 +50,7 @@ from study.bench import machine  # noqa: E402
 from tasks import PRESETS, Scene, classify, regimes  # noqa: E402
 from tasks.baseline import paper_method  # noqa: E402
 
-PUBLIC = REPO.parent / "shared" / "reference" / "public_cases.json"
+PUBLIC = REPO / "tests" / "data" / "reference_cases.json"
 SCENE = Scene("ground", 2, 1, gamma=1.0, kappa=1.0)
 CONFIG = "2dof_ground_m1"
 R_RANGE = (0.05, 2.5)
@@ -333,7 +333,10 @@ def main(argv: list[str] | None = None) -> int:
             "",
         ]
     )
-    emit("## Agreement with the reference labels (`public_cases.json`, `reference_regime`)\n")
+    emit(
+        "## Agreement with the reference labels "
+        "(`tests/data/reference_cases.json`, `reference_regime`)\n"
+    )
     emit(
         table(
             ["method", "all cases run", f"`{CONFIG}` cases", "undetermined", "wall s"],

@@ -21,7 +21,7 @@ one fidelity with optional solver-setting overrides (``tasks.fidelity``)::
 
 Every rule broken raises :class:`~study.errors.StudyError` naming the field,
 e.g. ``scene[0].r.num: must be an integer >= 1, got -3`` (scenes count from 0
-in file order). See /work/notes/README_study.md (README "Study files").
+in file order). See README "Study files".
 """
 
 from __future__ import annotations

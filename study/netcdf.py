@@ -1,6 +1,6 @@
 """Assembly of the result file: one labelled xarray Dataset per scene, one netCDF4 file.
 
-Schema (COMMON.md "netCDF schema"): dims ``(gamma, kappa, r, beta)`` with the
+Schema (README "Results: the netCDF files"): dims ``(gamma, kappa, r, beta)`` with the
 unswept ratios dropped (a point list: one dim ``point``); one variable per
 field of ``tasks.result.FIELDS``; the closed-form boundaries of
 ``analysis.boundaries`` for the methods "paper" and "exact" along r; CF
@@ -66,8 +66,10 @@ BOUNDARY_ATTRS = {
     "beta_motion": "smallest beta of no motion (stick-slip / no-motion boundary)",
 }
 METHOD_NOTES = {
-    "paper": "closed form of Marino & Cicirello (2021), Eqs. 13, 53 with S = 1 (MODEL.md 4.1-4.2)",
-    "exact": "exact antisymmetric continuous-motion limit (MODEL.md 4.3)",
+    "paper": (
+        "closed form of Marino & Cicirello (2021), Eqs. 13, 53 with S = 1 (docs/theory.md 4.1-4.2)"
+    ),
+    "exact": "exact antisymmetric continuous-motion limit (docs/theory.md 4.3)",
 }
 PACKAGES = (
     "frictionregimes",

@@ -30,7 +30,7 @@ One formulation covers every contact (:mod:`tasks.scene`, :mod:`tasks.model`):
 Classification from the last cycle, as the paper did: stuck for the whole last
 cycle is no motion, any stick phase of positive length in it is stick-slip,
 otherwise continuous. There is no steady-state test (``converged`` is False
-everywhere): residual transients give the paper's "spikes" (MODEL.md 3, 7).
+everywhere): residual transients give the paper's "spikes" (docs/theory.md 3, 7).
 
 Deviations, all minor: scipy accepts ``rtol >= 100 eps`` (~2.2e-14), so the
 paper's 1e-12 is used as is; stuck phases use ``max_step = pi/8`` (the stuck

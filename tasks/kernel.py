@@ -28,7 +28,7 @@ Phase propagation
 Closed-form propagation of a linear phase (slip or stick) and event location.
 
 Between two events every configuration is linear with constant plus harmonic
-forcing (MODEL.md section 2). In the modal coordinates of the moving system
+forcing (docs/theory.md section 2). In the modal coordinates of the moving system
 each mode obeys
 
     eta'' + Omega^2 eta = a cos(tau) + c,                                 (1)
@@ -208,7 +208,7 @@ def _no_zero_between(fa, da, fb, db, h, curvature):
 
 @njit(cache=True)
 def never_unsticks(seg, sc):
-    """Certificate that a stick phase lasts for ever (MODEL.md 4.2, held contact).
+    """Certificate that a stick phase lasts for ever (docs/theory.md 4.2, held contact).
 
     While stuck, ``g = G0 + H cos(tau) + free modes``; if
     ``|G0| + |H| + sum_k |alpha_k| A_free,k <= beta`` then ``|g| <= beta`` at
@@ -1175,7 +1175,7 @@ def _linear_amplitude(seg_slip):
 
 @njit(cache=True)
 def _resonant_growth(seg_slip, f_r2, beta):
-    """Den Hartog's resonance rule, extended mode by mode (MODEL.md 3).
+    """Den Hartog's resonance rule, extended mode by mode (docs/theory.md 3).
 
     At an exact resonance of the sliding system (``Omega_k = 1``) the load feeds
     mode k with ``pi |a_k| A`` per cycle while the contact dissipates at most

@@ -6,7 +6,7 @@ With ``M = r^2 Gamma`` (Gamma = diag(gamma), Eq. 68) the eigenproblem
 ``Omega_i = sqrt(lambda_i) / r`` in dimensionless time (Eqs. 17, 40). The
 mass-normalised modes of the paper are ``psi_i = phi_i / r`` (Eq. 26).
 
-Two linear systems describe every phase of the motion (MODEL.md section 2):
+Two linear systems describe every phase of the motion (docs/theory.md section 2):
 
 * **slip** (all N coordinates move, contact sliding with sign s):
   ``M x'' + K x = p cos tau - beta s b``;

@@ -3,7 +3,7 @@
 Every part of the project (simulation, closed forms, netCDF flags, figures,
 reports) uses these constants; nothing else hard-codes the numbers.
 
-Non-negative codes are steady-state regimes (MODEL.md section 3, the paper's
+Non-negative codes are steady-state regimes (docs/theory.md section 3, the paper's
 Tables 1-3). Negative codes mean *undetermined*, one code per reason, so that
 a point that did not settle is never silently given a regime.
 """

@@ -1,4 +1,4 @@
-"""A scene: one chain of masses with one Coulomb contact (MODEL.md sections 1-2).
+"""A scene: one chain of masses with one Coulomb contact (docs/theory.md sections 1-2).
 
 All three contact configurations of the paper are written in one form,
 
@@ -160,7 +160,7 @@ class Scene:
         """Amplitude p of the harmonic load p cos(tau) in the scene's coordinates."""
         n = self.dof
         if self.contact == "base":
-            return r * r * self.mass_ratios  # M 1 (Eq. 98, MODEL.md 2)
+            return r * r * self.mass_ratios  # M 1 (Eq. 98, docs/theory.md 2)
         p = np.zeros(n)
         p[0] = 1.0  # the base moves spring 1 (Eq. 65)
         return p

@@ -31,7 +31,7 @@ EVENT_KINDS: dict[int, str] = {
 
 @dataclass
 class Trajectory:
-    """Events of a simulated stretch of motion (scene coordinates, MODEL.md 2).
+    """Events of a simulated stretch of motion (scene coordinates, docs/theory.md 2).
 
     Attributes
     ----------

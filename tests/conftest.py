@@ -9,13 +9,15 @@ from pathlib import Path
 
 import pytest
 
-#: Sibling folder of the repository with the model notes and reference data.
-SHARED = Path(__file__).resolve().parents[2] / "shared"
+#: Test data kept in the repository (see tests/data/README.md).
+DATA = Path(__file__).resolve().parent / "data"
+#: The 170 independently labelled reference cases.
+REFERENCE_CASES = DATA / "reference_cases.json"
 
 
 @pytest.fixture
-def shared_dir() -> Path:
-    return SHARED
+def reference_cases_path() -> Path:
+    return REFERENCE_CASES
 
 
 @pytest.fixture

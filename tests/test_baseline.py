@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -28,10 +27,6 @@ CASES = (
 )
 
 
-#: The shared folder next to the repository (as in conftest.py).
-SHARED = Path(__file__).resolve().parents[2] / "shared"
-
-
 def scene_of(case: dict) -> Scene:
     n = case["N"]
     ratios = {"gamma": tuple(case["g"][1:]), "kappa": tuple(case["k"][1:])} if n > 1 else {}
@@ -39,10 +34,8 @@ def scene_of(case: dict) -> Scene:
 
 
 @pytest.fixture(scope="module")
-def public_cases():
-    path = SHARED / "reference" / "public_cases.json"
-    if not path.exists():
-        pytest.skip(f"no reference data at {path}")
+def public_cases(reference_cases_path):
+    path = reference_cases_path
     return {c["id"]: c for c in json.loads(path.read_text())["cases"]}
 
 
@@ -60,7 +53,7 @@ def test_reproduces_the_published_baseline(public_cases, case_id):
 
 @pytest.mark.parametrize(("contact", "r", "beta"), [("ground", 2.5, 0.2), ("base", 2.0, 0.5)])
 def test_den_hartog_amplitude(contact, r, beta):
-    """SDOF continuous steady state: X = sqrt(V^2 - beta^2 U^2) (MODEL.md 4.3)."""
+    """SDOF continuous steady state: X = sqrt(V^2 - beta^2 U^2) (docs/theory.md 4.3)."""
     p = r * r if contact == "base" else 1.0
     V = p / (1.0 - r * r)
     U = math.tan(math.pi / (2.0 * r)) / r

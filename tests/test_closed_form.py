@@ -5,7 +5,7 @@ Independent truths used here: the paper's explicit 2DOF formulas (Eqs. 22-24,
 forced and held systems, per-r eigen-decompositions of (K, M(r)), a brute-force
 dense-grid evaluation of Den Hartog's S (Eq. 16), an antisymmetric
 continuous-motion solver built from matrix exponentials (no modal algebra) and the
-reference data of /work/shared/reference (computed by an independent code).
+reference data of tests/data (computed by an independent code).
 """
 
 from __future__ import annotations
@@ -79,7 +79,7 @@ def paper_2dof(contact: str, j: int, gamma: float, kappa: float, r: np.ndarray):
         cont = np.sqrt(V**2 / (U**2 + 1.0 / m**2))  # Eqs. 56, 59
         motion = np.ones_like(r) if j == 1 else kappa / np.abs(1.0 + kappa - r**2)  # Eq. 63
         return cont, motion, None
-    cont = np.sqrt(Vz**2 / (U**2 + 1.0 / m**2))  # Table 2 with V_z (MODEL.md 6)
+    cont = np.sqrt(Vz**2 / (U**2 + 1.0 / m**2))  # Table 2 with V_z (docs/theory.md 6)
     misprint = np.sqrt(V**2 / (U**2 + 1.0 / m**2))  # Table 2 as printed
     if j == 1:
         motion = np.abs(kappa * (1 + gamma) * r**2 - gamma * r**4) / np.abs(kappa - gamma * r**2)
@@ -151,7 +151,7 @@ def antisymmetric_boundary(scene: Scene, r: float, beta_hi: float, n_tau: int = 
     M x'' + K x = p cos(tau + phi) + beta b on (0, pi); unknowns x(0), v(0),
     cos phi, sin phi from x(pi) = -x(0), v(pi) = -v(0), b.v(0) = 0 and
     cos^2 + sin^2 = 1 (branch b.x(0) > 0); continuous iff b.v < 0 on (0, pi).
-    Bisection on beta. Independent of the modal formulas of MODEL.md 4.3.
+    Bisection on beta. Independent of the modal formulas of docs/theory.md 4.3.
     """
     K = scene.stiffness_matrix()
     M = scene.mass_matrix(r)
@@ -248,7 +248,7 @@ def singular_r(scene: Scene) -> np.ndarray:
     return np.array(rs)
 
 
-# ---------------------------------------------------------------------- MODEL.md 5
+# ---------------------------------------------------------------------- docs/theory.md 5
 @pytest.mark.parametrize(("gamma", "kappa"), PAIRS)
 def test_ground_m1_antiresonance(gamma, kappa):
     s = Scene("ground", 2, 1, gamma=gamma, kappa=kappa)
@@ -313,7 +313,7 @@ def test_5dof_peaks():
 
 
 def test_motion_bound_independent_of_gamma_or_kappa():
-    """MODEL.md 5 (2DOF): no gamma in the ground bound, no kappa in the mass-contact bound.
+    """docs/theory.md 5 (2DOF): no gamma in the ground bound, no kappa in the mass-contact bound.
 
     For longer chains this holds for a ground wall on m_1 or m_2 only (the lower
     subsystem is m_1 alone, the upper one is unloaded); on m_j, j >= 3, the lower
@@ -345,7 +345,7 @@ def test_motion_bound_sdof():
     np.testing.assert_allclose(motion_bound(Scene("base", 1), r), r**2, rtol=1e-15)
 
 
-# ---------------------------------------------------------------------- MODEL.md 6
+# ---------------------------------------------------------------------- docs/theory.md 6
 def test_table2_misprint_example():
     s = Scene("base", 2, 1, gamma=1.0, kappa=1.0)
     bc = continuous_bound(s, 2.5)
@@ -353,7 +353,7 @@ def test_table2_misprint_example():
     cont, _, misprint = paper_2dof("base", 1, 1.0, 1.0, np.array(2.5))
     assert misprint == pytest.approx(0.622, abs=5e-4)
     assert cont == pytest.approx(bc, rel=1e-12)
-    assert predict(s, 2.5, 1.88) == CONTINUOUS  # the simulated point of MODEL.md 6
+    assert predict(s, 2.5, 1.88) == CONTINUOUS  # the simulated point of docs/theory.md 6
 
 
 # ------------------------------------------------------- paper formulas, independently
@@ -427,7 +427,7 @@ def test_exact_sdof_equals_eq16():
         n_active += S16 > 1.0
         assert S[i] == pytest.approx(S16, rel=1e-7)
         assert exact[i] == pytest.approx(sdof_beta(r, S16), rel=1e-7)
-        # base wall: V = r^2 / (1 - r^2), same U and S (MODEL.md 2)
+        # base wall: V = r^2 / (1 - r^2), same U and S (docs/theory.md 2)
         base = continuous_bound(Scene("base", 1), r, "exact")
         assert base == pytest.approx(r**2 * sdof_beta(r, S16), rel=1e-7)
     assert n_active >= 5  # the check (c) is really exercised
@@ -473,7 +473,7 @@ def test_slip_velocity_matches_matrix_exponential():
     sin_phi = -beta * U / V
     cos_phi = np.sign(V) * np.sqrt(1 - sin_phi**2)
     Vvec = np.linalg.solve(K - M, p)
-    x0 = Vvec * cos_phi  # MODEL.md 4.3: x(0) = V cos(phi), x'(0) = ... from the ODE
+    x0 = Vvec * cos_phi  # docs/theory.md 4.3: x(0) = V cos(phi), x'(0) = ... from the ODE
     # velocity at 0 from the modal solution is -V sin(phi) + beta sum ... ; build it by
     # solving the antisymmetry conditions directly instead:
     n = s.dof
@@ -511,7 +511,7 @@ def test_h_is_odd_about_half_period():
 
 
 def _dense_sup(scene: Scene, r: float, n_tau: int = 200_001) -> float:
-    """sup of m_b h / sin on a dense grid from an independent modal sum (MODEL.md 4.3)."""
+    """sup of m_b h / sin on a dense grid from an independent modal sum (docs/theory.md 4.3)."""
     K, M, b = scene.stiffness_matrix(), scene.mass_matrix(r), scene.contact_vector()
     lam, psi = eigh(K, M)
     Om = np.sqrt(lam)
@@ -546,7 +546,10 @@ def test_exact_below_paper_and_equal_where_c_inactive(contact, dof, j):
 
 
 def test_exact_removes_the_crossing():
-    """MODEL.md 7: paper bounds cross at r = 0.554-0.586 (2DOF ground m1, gamma = kappa = 1)."""
+    """docs/theory.md 7: the paper's bounds cross at r = 0.554-0.586.
+
+    2DOF ground m1, gamma = kappa = 1.
+    """
     s = Scene("ground", 2, 1)
     r = np.linspace(0.556, 0.584, 15)
     bc, bm = boundaries(s, r, "paper")
@@ -680,13 +683,13 @@ def test_predict_broadcasting_and_shapes():
 
 
 # -------------------------------------------------------------------- reference data
-def _reference_cases(shared_dir):
-    data = json.loads((shared_dir / "reference" / "public_cases.json").read_text())
+def _reference_cases(path):
+    data = json.loads(path.read_text())
     return data["cases"]
 
 
-def test_reference_data(shared_dir):
-    cases = _reference_cases(shared_dir)
+def test_reference_data(reference_cases_path):
+    cases = _reference_cases(reference_cases_path)
     assert len(cases) == 170
     dev = {"paper": 0.0, "motion": 0.0, "exact": 0.0}
     for c in cases:

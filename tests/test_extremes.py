@@ -115,7 +115,7 @@ def test_exact_resonances_and_antiresonances(scene):
     res = classify(scene, Rg, Bg, **BUDGET)
     check_sound(res)
     if scene.contact == "ground" and scene.contact_mass == 1 and scene.gamma == 1.0:
-        # MODEL.md 7 (gamma = kappa = 1): the tuned absorber holds the contact at
+        # docs/theory.md 7 (gamma = kappa = 1): the tuned absorber holds the contact at
         # the antiresonance (the paper's thin grey strip). Elsewhere (e.g.
         # gamma = 0.5, kappa = 2) the simulation finds stick-slip with the contact
         # stuck for more than 90 % of the period: this is not asserted.

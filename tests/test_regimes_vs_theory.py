@@ -3,7 +3,7 @@
 Far from every boundary (by 25 % in beta, also at r +- 1 %, so that points where
 the closed forms vary steeply with r do not count as far) the regime is not in
 doubt, and the simulator must reproduce the closed-form rule (Tables 1-3) for
-every configuration. The reference cases of ``../shared/reference/`` were
+every configuration. The reference cases of ``tests/data/`` were
 labelled by an independent simulator.
 """
 
@@ -68,13 +68,13 @@ def test_far_from_boundaries_the_closed_form_rule_holds(scene):
     ]
     # Undetermined is honest, not wrong: in long chains the contact can stick for
     # hundreds of cycles while 19 undamped masses vibrate quasi-periodically
-    # (MODEL.md 7), which no finite run can call steady. It must stay rare.
+    # (docs/theory.md 7), which no finite run can call steady. It must stay rare.
     allowed = 0 if scene.dof <= 5 else 0.1 * r.size
     assert (~determined).sum() <= allowed, res.regime
 
 
-def _reference_cases(shared: Path) -> list[dict]:
-    return json.loads((shared / "reference" / "public_cases.json").read_text())["cases"]
+def _reference_cases(path: Path) -> list[dict]:
+    return json.loads(path.read_text())["cases"]
 
 
 def _scene_of(case: dict) -> Scene:
@@ -82,9 +82,9 @@ def _scene_of(case: dict) -> Scene:
     return Scene(case["contact"], case["N"], case["j"], gamma=g or 1.0, kappa=k or 1.0)
 
 
-def test_reference_cases(shared_dir):
+def test_reference_cases(reference_cases_path):
     """All 170 independently labelled points: agreement and the amplitude of the motion."""
-    cases = _reference_cases(shared_dir)
+    cases = _reference_cases(reference_cases_path)
     wrong = []
     other_motion = []
     for c in cases:
@@ -104,10 +104,12 @@ def test_reference_cases(shared_dir):
     assert len(other_motion) <= 0.02 * len(cases), other_motion
 
 
-def test_reference_beats_the_papers_baseline(shared_dir):
+def test_reference_beats_the_papers_baseline(reference_cases_path):
     """Where the paper's method (100 cycles from rest) mislabels, the simulator does not."""
     cases = [
-        c for c in _reference_cases(shared_dir) if c["baseline_regime"] != c["reference_regime"]
+        c
+        for c in _reference_cases(reference_cases_path)
+        if c["baseline_regime"] != c["reference_regime"]
     ]
     assert cases, "the reference data has baseline mislabels to check"
     for c in cases:
@@ -115,13 +117,13 @@ def test_reference_beats_the_papers_baseline(shared_dir):
         assert regimes.name(int(res.regime)) == c["reference_regime"], c["id"]
 
 
-def test_exact_boundary_agrees_at_least_as_often_as_the_papers(shared_dir):
-    """On simulated maps the exact boundary (MODEL.md 4.3) scores at least as well as
+def test_exact_boundary_agrees_at_least_as_often_as_the_papers(reference_cases_path):
+    """On simulated maps the exact boundary (docs/theory.md 4.3) scores at least as well as
     the paper's S = 1: on the reference's near-boundary points and on a map of the
     low-r range of Fig. 4, where S > 1 matters."""
     from analysis.scoring import agreement
 
-    near = [c for c in _reference_cases(shared_dir) if c["category"] == "near"]
+    near = [c for c in _reference_cases(reference_cases_path) if c["category"] == "near"]
     hits = {"paper": 0, "exact": 0}
     for c in near:
         scene = _scene_of(c)

@@ -1,6 +1,6 @@
 """The event-driven simulator against exact solutions and physical laws.
 
-Independent truths: Den Hartog's closed-form continuous steady state (MODEL.md
+Independent truths: Den Hartog's closed-form continuous steady state (docs/theory.md
 4.3), the undamped particular solution, the event conditions of Sect. 2.2, and
 the energy balance of the equations of motion.
 """
@@ -21,7 +21,7 @@ def den_hartog(scene: Scene, r: float, beta: float) -> tuple[float, float]:
     ``r^2 x'' + x + beta sgn(x') = p cos(tau)`` with p = 1 (ground) or r^2 (base):
     ``X = sqrt(V^2 - beta^2 U^2)``, ``V = p / (1 - r^2)``, ``U = tan(pi/(2r))/r``;
     the maximum is at ``tau = phi`` with ``sin(phi) = -beta U / V`` and ``cos(phi)``
-    of the sign of V (MODEL.md 4.3, Eqs. 14-15).
+    of the sign of V (docs/theory.md 4.3, Eqs. 14-15).
     """
     p = r * r if scene.contact == "base" else 1.0
     V = p / (1.0 - r * r)
@@ -214,7 +214,7 @@ def test_beta_zero_is_continuous_without_simulation():
 
 
 def test_antiresonance_tuned_absorber():
-    """MODEL.md 7: at r = sqrt(kappa/gamma) (ground, m_1) no motion; 1 % away stick-slip."""
+    """docs/theory.md 7: at r = sqrt(kappa/gamma) (ground, m_1) no motion; 1 % away stick-slip."""
     scene = Scene("ground", 2, 1, gamma=1.0, kappa=1.0)
     res = classify(scene, [1.0, 0.99, 1.01], 0.3)
     assert list(res.regime) == [regimes.NO_MOTION, regimes.STICK_SLIP, regimes.STICK_SLIP]

@@ -1,6 +1,6 @@
 """Boundary tracing: numerical boundaries by bisection against the exact closed forms.
 
-The continuous / stick-slip boundary of MODEL.md 4.3 ("exact") and the motion
+The continuous / stick-slip boundary of docs/theory.md 4.3 ("exact") and the motion
 bound (Eqs. 13, 63) are derived without simulation; the traced boundaries are
 found by simulation only. Agreement to the bisection tolerance checks both.
 """
