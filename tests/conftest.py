@@ -15,7 +15,7 @@ DATA = Path(__file__).resolve().parent / "data"
 REFERENCE_CASES = DATA / "reference_cases.json"
 
 
-@pytest.fixture
+@pytest.fixture(scope="session")
 def reference_cases_path() -> Path:
     return REFERENCE_CASES
 
