@@ -79,10 +79,17 @@ from tasks.regimes import (
 OMEGA, ETA0, ETAD0, LOAD_COS, LOAD_CONST, ALPHA, DELTA = range(7)
 N_ROWS = 7
 # Entries of the scalar segment array ``sc``.
-TAU0, COS_TAU0, SIN_TAU0, OBS_COS, OBS0, KIND, SIGN, BETA, EVALS = range(9)
-N_SCALARS = 9
+TAU0, COS_TAU0, SIN_TAU0, OBS_COS, OBS0, KIND, SIGN, BETA, EVALS, WORK_CAP = range(10)
+N_SCALARS = 10
 KIND_SLIP = 0.0
 KIND_STICK = 1.0
+# Work units (``sc[EVALS]``, mode evaluations) charged per event and per N^2:
+# the bookkeeping of an event (state projections, contact force) is O(N^2).
+EVENT_WORK = 4.0
+# Orbit invariant (:func:`orbit_holds`): stated tolerance of ``|g| <= beta`` in
+# stick phases, relative to beta, and samples per shortest modal half-period.
+ORBIT_RTOL = 1e-9
+ORBIT_SAMPLES = 8.0
 
 
 @njit(cache=True)
@@ -166,43 +173,81 @@ def event_function(seg, sc, t, eta, etad):
 
 
 @njit(cache=True)
-def derivative_bounds(seg, sc):
-    """Upper bounds of ``|F'|`` and ``|F''|`` over the whole phase (inf at resonance).
+def derivative_bounds(seg, sc, t_end):
+    """Upper bounds of ``|y'|`` and ``|y''|`` over ``[0, t_end]`` of a phase.
 
-    Each mode is split into its free oscillation (amplitude ``A_free``), its
-    harmonic particular part ``P = a / (Omega^2 - 1)`` and its static part, so
-    that ``|eta^(k)| <= Omega^k A_free + |P|`` for k >= 1.
+    ``y`` is the observable of the phase, so the bounds hold for ``|F'|`` and
+    ``|F''|`` of both branches ``beta - y`` and ``beta + y`` of a stick phase.
+    Every term is covered: the observable's own harmonic ``A cos(tau)`` and,
+    mode by mode, the smaller of two bounds of ``|eta^(k)|`` (k = 1, 2, 3):
+
+    * the modal split (module docstring, Eq. (1)): free oscillation of amplitude
+      ``A_free`` about the static part ``c / Omega^2`` plus the harmonic particular
+      part ``P = a / (Omega^2 - 1)``: ``Omega^k A_free + |P|``;
+    * Duhamel's integral (valid at and near resonance, where the first bound
+      grows without limit): free oscillation of amplitude
+      ``A0 = |(eta0 - c / Omega^2, eta0' / Omega)|`` plus the zero-start forced
+      response ``f`` of ``a cos(tau)``, with ``|f'| <= |a| t``,
+      ``|f''| <= |a| (1 + Omega t)``, ``|f'''| <= |a| (1 + Omega^2 t)``:
+      ``Omega^k A0 + (those)`` at ``t = t_end``.
+
+    Both are multiplied by ``1 + 1e-9`` (a safety margin far above the rounding
+    of the sums). Returns ``inf`` only for non-finite data.
     """
-    d1 = abs(sc[OBS_COS])
-    d2 = abs(sc[OBS_COS])
+    harmonic = abs(sc[OBS_COS])
+    d1 = harmonic
+    d2 = harmonic
     for k in range(seg.shape[1]):
         w = seg[OMEGA, k]
+        a = seg[LOAD_COS, k]
+        c = seg[LOAD_CONST, k]
+        e0 = seg[ETA0, k]
+        v0 = seg[ETAD0, k]
+        abs_a = abs(a)
+        static = c / (w * w)
+        # Duhamel: free part about the static offset, zero-start forced part
+        a0 = math.hypot(e0 - static, v0 / w)
+        b1 = w * a0 + abs_a * t_end
+        b2 = w * w * a0 + abs_a * (1.0 + w * t_end)
+        b3 = w * w * w * a0 + abs_a * (1.0 + w * w * t_end)
         den = w * w - 1.0
-        if den == 0.0:
-            return np.inf, np.inf
-        pk = abs(seg[LOAD_COS, k] / den)
-        d = seg[ETA0, k] - seg[LOAD_CONST, k] / (w * w) - seg[LOAD_COS, k] / den * sc[COS_TAU0]
-        e = (seg[ETAD0, k] + seg[LOAD_COS, k] / den * sc[SIN_TAU0]) / w
-        free = math.hypot(d, e)
+        if den != 0.0:
+            pk = a / den
+            d = e0 - static - pk * sc[COS_TAU0]
+            e = (v0 + pk * sc[SIN_TAU0]) / w
+            free = math.hypot(d, e)
+            ap = abs(pk)
+            b1 = min(b1, w * free + ap)
+            b2 = min(b2, w * w * free + ap)
+            b3 = min(b3, w * w * w * free + ap)
         alpha = abs(seg[ALPHA, k])
         delta = abs(seg[DELTA, k])
-        d1 += alpha * (w * free + pk) + delta * (w * w * free + pk)
-        d2 += alpha * (w * w * free + pk) + delta * (w * w * w * free + pk)
+        d1 += alpha * b1 + delta * b2
+        d2 += alpha * b2 + delta * b3
+    d1 *= 1.0 + 1e-9
+    d2 *= 1.0 + 1e-9
     if not (math.isfinite(d1) and math.isfinite(d2)):
         return np.inf, np.inf
     return d1, d2
 
 
 @njit(cache=True)
-def _no_zero_between(fa, da, fb, db, h, curvature):
-    """Certificate that F > 0 on ``[a, a + h]`` from its values and slopes at both
-    ends and ``|F''| <= curvature``: the concave lower bounds
-    ``fa + da u - c u^2 / 2`` and ``fb - db w - c w^2 / 2`` (w = h - u) are
-    positive on intervals that together cover the bracket."""
+def _no_zero_between(fa, da, fb, db, h, curvature, slope=np.inf):
+    """Certificate that F > 0 on ``(a, a + h)`` from its values and slopes at both
+    ends, ``|F''| <= curvature`` and ``|F'| <= slope``: the lower bounds
+    ``fa + da u - c u^2 / 2`` and ``fa - slope u`` from the left end, and their
+    mirror images from the right end, are positive on intervals that together
+    cover the bracket. ``fa`` or ``fb`` may be 0 (a phase start at an event);
+    values below 0 (rounding at such a start) count as 0."""
+    fa = max(fa, 0.0)
+    fb = max(fb, 0.0)
     if curvature <= 0.0:
-        return True
+        return fa > 0.0 or fb > 0.0 or (da > 0.0 and db < 0.0)
     ua = (da + math.sqrt(da * da + 2.0 * curvature * fa)) / curvature
     wb = (-db + math.sqrt(db * db + 2.0 * curvature * fb)) / curvature
+    if slope > 0.0 and slope < np.inf:
+        ua = max(ua, fa / slope)
+        wb = max(wb, fb / slope)
     return ua + wb >= h
 
 
@@ -286,61 +331,142 @@ def _solve_bracket(seg, sc, which, lo, hi, flo, fhi, tol, eta, etad):
 
 
 @njit(cache=True)
-def _dip(seg, sc, ta, tb, fa, da, fb, db, curvature, tol, eta, etad):
-    """Search ``(ta, tb)`` (F > 0 at both ends) for a point where F <= 0.
+def _observe(seg, sc, t, eta, etad):
+    """``(y, y')`` of the phase's observable at t, counting the work in ``sc[EVALS]``."""
+    sc[EVALS] += 1.0 + seg.shape[1]
+    return evaluate(seg, sc, t, eta, etad)
 
-    Bisects the parts of the bracket the curvature certificate cannot clear,
-    left to right. Returns ``(lo, hi, kind)``: kind 0 = no zero, 1 = a sign
-    change in ``(lo, hi]`` (F(lo) > 0 >= F(hi), no zero before lo), 2 = a
-    touching zero at ``hi`` (the bracket shrank to ``tol`` with F still not
-    provably positive: a graze).
+
+@njit(cache=True)
+def _event_value(sc, y, dy):
+    """``(F, F')`` from the observable: ``s y`` sliding, ``beta - |y|`` stuck."""
+    if sc[KIND] == KIND_SLIP:
+        return sc[SIGN] * y, sc[SIGN] * dy
+    if y >= 0.0:
+        return sc[BETA] - y, -dy
+    return sc[BETA] + y, dy
+
+
+@njit(cache=True)
+def _clear(sc, ya, dya, yb, dyb, h, curvature, slope):
+    """Certificate that the event function stays positive on ``(a, a + h)``.
+
+    Sliding: on ``F = s y``. Stuck: ``F = beta - |y|`` is the smaller of the two
+    smooth branches ``beta - y`` and ``beta + y``; both must be certified (a
+    bound of one branch says nothing about the other once ``y`` changes sign
+    inside the bracket).
     """
-    stack_a = np.empty(64)
-    stack_b = np.empty(64)
-    vals = np.empty((64, 4))
-    top = 0
+    if sc[KIND] == KIND_SLIP:
+        s = sc[SIGN]
+        return _no_zero_between(s * ya, s * dya, s * yb, s * dyb, h, curvature, slope)
+    beta = sc[BETA]
+    return _no_zero_between(
+        beta - ya, -dya, beta - yb, -dyb, h, curvature, slope
+    ) and _no_zero_between(beta + ya, dya, beta + yb, dyb, h, curvature, slope)
+
+
+@njit(cache=True)
+def _out_of_work(sc):
+    return sc[EVALS] > sc[WORK_CAP]
+
+
+@njit(cache=True)
+def _dip(seg, sc, ta, tb, ya, dya, yb, dyb, curvature, slope, tol, skip_graze, floor, eta, etad):
+    """Search ``(ta, tb)`` (F > 0 at both ends) for the first point where F <= 0.
+
+    Bisects the parts of the bracket the certificate (:func:`_clear`) cannot
+    clear, left to right, so everything left of the returned bracket is
+    cleared. Returns ``(lo, hi, kind)``: kind 0 = no zero, 1 = a sign change
+    in ``(lo, hi]`` (F(lo) > 0 >= F(hi)), 2 = a touching zero at ``hi`` (a piece
+    of width ``tol`` that cannot be cleared while F stays positive at every
+    point tried: F comes within ``curvature tol^2 / 8`` of zero), 3 = the
+    point's work budget ran out. Stick phases (and ``skip_graze``) step over
+    touching zeros: ``|g| = beta`` still sticks. Values ``F > -floor`` count
+    as positive (``floor`` > 0 only next to a phase start, where F starts at a
+    zero known to rounding).
+    """
+    stack_a = np.empty(128)
+    stack_b = np.empty(128)
+    vals = np.empty((128, 4))
     stack_a[0] = ta
     stack_b[0] = tb
-    vals[0, 0] = fa
-    vals[0, 1] = da
-    vals[0, 2] = fb
-    vals[0, 3] = db
+    vals[0, 0] = ya
+    vals[0, 1] = dya
+    vals[0, 2] = yb
+    vals[0, 3] = dyb
     top = 1
-    budget = 400
+    skip = skip_graze or sc[KIND] == KIND_STICK
     while top > 0:
         top -= 1
         a = stack_a[top]
         b = stack_b[top]
-        f_a = vals[top, 0]
+        y_a = vals[top, 0]
         d_a = vals[top, 1]
-        f_b = vals[top, 2]
+        y_b = vals[top, 2]
         d_b = vals[top, 3]
-        if _no_zero_between(f_a, d_a, f_b, d_b, b - a, curvature):
+        if _clear(sc, y_a, d_a, y_b, d_b, b - a, curvature, slope):
             continue
-        if b - a <= tol or budget <= 0 or top >= 62:
-            # cannot clear it: F comes within curvature * tol^2 of zero
-            return a, 0.5 * (a + b), 2 if b - a <= tol else 0
-        budget -= 1
         m = 0.5 * (a + b)
-        f_m, d_m = event_function(seg, sc, m, eta, etad)
-        if f_m <= 0.0:
+        if b - a <= tol or not (a < m < b) or top >= 126:
+            if skip:
+                continue
+            return a, m, 2
+        if _out_of_work(sc):
+            return a, b, 3
+        y_m, d_m = _observe(seg, sc, m, eta, etad)
+        f_m, _ = _event_value(sc, y_m, d_m)
+        if f_m <= -floor:
             return a, m, 1
         # right half first on the stack, so the left half is searched first
         stack_a[top] = m
         stack_b[top] = b
-        vals[top, 0] = f_m
+        vals[top, 0] = y_m
         vals[top, 1] = d_m
-        vals[top, 2] = f_b
+        vals[top, 2] = y_b
         vals[top, 3] = d_b
         top += 1
         stack_a[top] = a
         stack_b[top] = m
-        vals[top, 0] = f_a
+        vals[top, 0] = y_a
         vals[top, 1] = d_a
-        vals[top, 2] = f_m
+        vals[top, 2] = y_m
         vals[top, 3] = d_m
         top += 1
     return ta, tb, 0
+
+
+@njit(cache=True)
+def _first_zero(seg, sc, lo, hi, curvature, slope, tol, eta, etad):
+    """The first zero of F in ``(lo, hi]`` (F(lo) > 0 >= F(hi), no zero before lo).
+
+    Solves the bracket (:func:`_solve_bracket`), then proves with :func:`_dip`
+    that F has no zero between ``lo`` and the root found; if it has, the search
+    moves to the earlier sign change (or touching zero). Returns ``(t, ok)``,
+    ``t`` on the far side of the first zero; ``ok`` is False if the work budget
+    ran out.
+    """
+    while True:
+        y_lo, dy_lo = _observe(seg, sc, lo, eta, etad)
+        f_lo, _ = _event_value(sc, y_lo, dy_lo)
+        y_hi, dy_hi = _observe(seg, sc, hi, eta, etad)
+        f_hi, _ = _event_value(sc, y_hi, dy_hi)
+        if not f_lo > 0.0:  # rounding at the bracket's end: take it as the zero
+            return lo, True
+        r_lo, r_hi = _solve_bracket(seg, sc, 0, lo, hi, f_lo, f_hi, tol, eta, etad)
+        if r_lo <= lo:
+            return r_hi, True
+        y_r, dy_r = _observe(seg, sc, r_lo, eta, etad)
+        a, b, kind = _dip(
+            seg, sc, lo, r_lo, y_lo, dy_lo, y_r, dy_r, curvature, slope, tol, False, 0.0, eta, etad
+        )
+        if kind == 0:
+            return r_hi, True
+        if kind == 2:
+            return b, True
+        if kind == 3:
+            return r_hi, False
+        lo = a
+        hi = b
 
 
 @njit(cache=True)
@@ -348,75 +474,96 @@ def next_event(seg, sc, t_end, h, tol, eta, etad):
     """First time ``t`` in ``(0, t_end]`` where the event function ``F`` reaches 0.
 
     ``F > 0`` just after the phase start (it may start at 0, right after an
-    event). The interval is scanned in brackets no longer than ``h`` (a
-    fraction of the shortest modal half-period): a sign change is solved to
-    ``tol``. A bracket without one is cleared by a curvature certificate
-    (``|F''|`` bounded over the phase, :func:`_no_zero_between`) or else
-    bisected where it cannot be cleared (:func:`_dip`), which finds pairs of
-    zeros and grazing zeros however close together. Where ``F`` is far from 0
-    the scan jumps ahead by ``F / max|F'|``, an interval that provably holds no
-    zero.
+    event). Complete: every part of ``(0, t_end]`` is either proved free of
+    zeros or searched down to ``tol``. The interval is scanned in brackets no
+    longer than ``h`` (a fraction of the shortest modal half-period), or longer
+    where ``F / max|F'|`` proves them free of zeros. A bracket that ends with
+    ``F <= 0`` is solved for its *first* zero (:func:`_first_zero`); one that
+    does not is cleared by the certificate of :func:`_clear` (bounds of
+    :func:`derivative_bounds` on ``|F'|`` and ``|F''|`` covering every term, both
+    branches of ``beta - |g|`` in stick phases) or else bisected where it
+    cannot be cleared (:func:`_dip`), which finds pairs of zeros and grazing
+    zeros however close together. The point's work budget (``sc[WORK_CAP]``)
+    bounds the search.
 
     Returns ``(t, found)``; ``t`` is on the far side of the zero (F <= 0), or at
-    a touching zero.
+    a touching zero. If the work budget ran out, ``(t, False)`` with
+    ``sc[EVALS] > sc[WORK_CAP]``.
     """
-    f0, d0 = event_function(seg, sc, 0.0, eta, etad)
-    slope_bound, curvature = derivative_bounds(seg, sc)
+    y0, dy0 = _observe(seg, sc, 0.0, eta, etad)
+    f0, d0 = _event_value(sc, y0, dy0)
+    slope, curvature = derivative_bounds(seg, sc, t_end)
     ta = 0.0
-    if f0 > 0.0:
-        fa = f0
-        da = d0
-    else:
+    ya = y0
+    dya = dy0
+    if not f0 > 0.0:
         # phase start at an event (F(0) = 0): step off it to a point where
-        # F > 0 (a zero closer than h / 64 to the start is taken as immediate)
+        # F > 0 (a zero closer than h / 64 to the start is taken as immediate).
+        # F(0) is 0 only to rounding: next to the start, values above -noise
+        # count as positive (else a tangential event repeats in zero time).
         t1 = min(h / 64.0, t_end)
-        f1, d1 = event_function(seg, sc, t1, eta, etad)
-        if f1 <= 0.0:
+        y1, dy1 = _observe(seg, sc, t1, eta, etad)
+        f1, _ = _event_value(sc, y1, dy1)
+        noise = 1e-12 * (abs(y0) + (sc[BETA] if sc[KIND] == KIND_STICK else 0.0) + slope * t1)
+        if not noise < np.inf:
+            noise = 0.0
+        if f1 > -noise:
+            # (0, t1) is cleared from F(0) = 0 and F'(0) > 0, or searched
+            lo, hi, kind = _dip(
+                seg, sc, 0.0, t1, y0, dy0, y1, dy1, curvature, slope, tol, True, noise, eta, etad
+            )
+            if kind == 3:
+                return t1, False
+            if kind == 1 and lo > 0.0:
+                return _first_zero(seg, sc, lo, hi, curvature, slope, tol, eta, etad)
+            if kind == 1:
+                t1 = hi
+                f1 = -np.inf
+        if not f1 > -noise:
             tm = t1
             for _ in range(60):
                 tm = 0.5 * tm
-                fm, dm = event_function(seg, sc, tm, eta, etad)
+                ym, dym = _observe(seg, sc, tm, eta, etad)
+                fm, _ = _event_value(sc, ym, dym)
                 if fm > 0.0:
-                    lo, hi = _solve_bracket(seg, sc, 0, tm, t1, fm, f1, tol, eta, etad)
-                    return hi, True
+                    return _first_zero(seg, sc, tm, t1, curvature, slope, tol, eta, etad)
             return tm, True
         ta = t1
-        fa = f1
-        da = d1
+        ya = y1
+        dya = dy1
+    fa, _ = _event_value(sc, ya, dya)
     while ta < t_end:
+        if _out_of_work(sc):
+            return ta, False
         step = h
         certified = False
-        if slope_bound < np.inf:
-            safe = fa / slope_bound if slope_bound > 0.0 else t_end - ta
+        if slope < np.inf:
+            safe = fa / slope if slope > 0.0 else t_end - ta
             if safe > step:
                 step = safe
                 certified = True
         tb = min(ta + step, t_end)
-        fb, db = event_function(seg, sc, tb, eta, etad)
+        if not tb > ta:  # the step no longer advances time: out of budget
+            sc[EVALS] = sc[WORK_CAP] + 1.0
+            return ta, False
+        yb, dyb = _observe(seg, sc, tb, eta, etad)
+        fb, _ = _event_value(sc, yb, dyb)
         if fb <= 0.0:
-            lo, hi = _solve_bracket(seg, sc, 0, ta, tb, fa, fb, tol, eta, etad)
-            return hi, True
+            return _first_zero(seg, sc, ta, tb, curvature, slope, tol, eta, etad)
         if not certified:
-            if curvature < np.inf:
-                lo, hi, kind = _dip(seg, sc, ta, tb, fa, da, fb, db, curvature, tol, eta, etad)
-                if kind == 2 and sc[KIND] == KIND_SLIP:
-                    # the contact velocity touches zero: a stop if it can stick
-                    return hi, True
-                if kind == 1:
-                    f_lo, _ = event_function(seg, sc, lo, eta, etad)
-                    f_hi, _ = event_function(seg, sc, hi, eta, etad)
-                    lo, hi = _solve_bracket(seg, sc, 0, lo, hi, f_lo, f_hi, tol, eta, etad)
-                    return hi, True
-            elif da < 0.0 and db > 0.0:  # no curvature bound: locate the interior minimum
-                lo, hi = _solve_bracket(seg, sc, 1, ta, tb, da, db, tol, eta, etad)
-                tm = 0.5 * (lo + hi)
-                fm, dm = event_function(seg, sc, tm, eta, etad)
-                if fm <= 0.0:
-                    lo, hi = _solve_bracket(seg, sc, 0, ta, tm, fa, fm, tol, eta, etad)
-                    return hi, True
+            lo, hi, kind = _dip(
+                seg, sc, ta, tb, ya, dya, yb, dyb, curvature, slope, tol, False, 0.0, eta, etad
+            )
+            if kind == 2:  # the contact velocity touches zero: a stop if it can stick
+                return hi, True
+            if kind == 1:
+                return _first_zero(seg, sc, lo, hi, curvature, slope, tol, eta, etad)
+            if kind == 3:
+                return tb, False
         ta = tb
+        ya = yb
+        dya = dyb
         fa = fb
-        da = db
     return t_end, False
 
 
@@ -729,6 +876,7 @@ def run_cycle(x, xd, mode, stick_start, stats, ctx, work, rec, rec_n, tau_start,
         tau += t
         _record(rec, rec_n, tau, kind, mode, g, x, xd)
         events += 1
+        sc[EVALS] += EVENT_WORK * x.shape[0] * x.shape[0]
         if events > max_events:
             stats[ST_STATUS] = EVENT_LIMIT
             break
@@ -1088,10 +1236,12 @@ def _context(r, beta, scene, settings):
         seg_stick[ALPHA, k] = -g_modes_s[k]
         om_max = max(om_max, om)
     h_stick = step_fraction * math.pi / om_max
+    sc = np.zeros(N_SCALARS)
+    sc[WORK_CAP] = max_work
     ctx = (
         seg_slip,
         seg_stick,
-        np.zeros(N_SCALARS),
+        sc,
         beta,
         p,
         K,
@@ -1112,7 +1262,7 @@ def _context(r, beta, scene, settings):
         h_stick,
         event_tol,
         1e3 * event_tol,
-        max(max_events, int(8.0 * max(om_slip, om_max))),
+        max(max_events, _event_cap(8.0 * max(om_slip, om_max))),
         max_work,
     )
     work = (np.zeros(n), np.zeros(n), np.zeros(m), np.zeros(m), np.zeros(2 * m))
@@ -1363,6 +1513,148 @@ def simulate_point(r, beta, scene, settings, out, final):
 
 
 @njit(cache=True)
+def _event_cap(events):
+    """The per-cycle event limit implied by the fastest mode, as an int (capped at 1e9)."""
+    if not events < 1e9:
+        return 1_000_000_000
+    return int(events)
+
+
+@njit(cache=True)
+def _phase_holds(seg, sc, t_len, h, tol):
+    """The invariant through one phase of length ``t_len`` (start already set in ``seg, sc``).
+
+    Samples the observable at spacing at most ``h / ORBIT_SAMPLES`` strictly
+    inside the phase. Stuck: ``|g| <= beta (1 + ORBIT_RTOL) + tol max|g'|`` (the
+    second term is what an event located to ``tol`` can leave). Sliding: the
+    contact velocity keeps the phase's sign, ``s v >= -1e-9 max|v|``.
+    """
+    m = seg.shape[1]
+    eta = np.empty(m)
+    etad = np.empty(m)
+    n_samples = int(min(max(2.0, ORBIT_SAMPLES * t_len / h), 1e6))
+    dt = t_len / (n_samples + 1)
+    if sc[KIND] == KIND_STICK:
+        slope, _ = derivative_bounds(seg, sc, t_len)
+        limit = sc[BETA] * (1.0 + ORBIT_RTOL) + tol * slope
+        for i in range(1, n_samples + 1):
+            y, _ = evaluate(seg, sc, i * dt, eta, etad)
+            if not abs(y) <= limit:
+                return False
+        sc[EVALS] += n_samples * (1.0 + m)
+        return True
+    s = sc[SIGN]
+    vmax = 0.0
+    vmin = 0.0
+    for i in range(1, n_samples + 1):
+        y, _ = evaluate(seg, sc, i * dt, eta, etad)
+        v = s * y
+        vmax = max(vmax, abs(v))
+        vmin = min(vmin, v)
+    sc[EVALS] += n_samples * (1.0 + m)
+    return vmin >= -1e-9 * vmax
+
+
+@njit(cache=True)
+def orbit_holds(X, mode, theta, period, ctx, work):
+    """Orbit invariant: the converged period from the section state is a solution.
+
+    Re-simulates ``period`` cycles from ``(X, mode)`` at ``tau = theta`` with
+    every event recorded, then checks every phase densely in closed form
+    (:func:`_phase_holds`): through each stick phase ``|g| <= beta`` (to
+    ``ORBIT_RTOL``), through each slip phase the contact velocity keeps its
+    sign. Independent of the event search it checks: a missed unsticking or
+    reversal shows as a violation. Costs about one period more per point.
+    """
+    n = X.shape[0] // 2
+    beta = ctx[CTX_BETA]
+    h_slip = ctx[CTX_H_SLIP]
+    h_stick = ctx[CTX_H_STICK]
+    tol = ctx[CTX_TOL]
+    sc = ctx[CTX_SC]
+    rows = 64
+    stats = np.zeros(N_STATS)
+    while True:
+        rec = np.zeros((rows, REC_X + 2 * n))
+        rec_n = np.zeros(1, dtype=np.int64)
+        x = X[:n].copy()
+        xd = X[n:].copy()
+        m = mode
+        stick_start = theta
+        for k in range(period):
+            t0 = theta + TWO_PI * k
+            m, stick_start = run_cycle(
+                x, xd, m, stick_start, stats, ctx, work, rec, rec_n, t0, t0 + TWO_PI
+            )
+            if stats[ST_STATUS] != STATUS_OK:
+                return False
+        if rec_n[0] < rows:
+            break
+        rows *= 4
+    eta, etad, eta_s, etad_s, q = work
+    x = np.empty(n)
+    xd = np.empty(n)
+    for j in range(rec_n[0] - 1):
+        t_len = rec[j + 1, REC_TAU] - rec[j, REC_TAU]
+        if not t_len > 0.0:
+            continue
+        tau0 = rec[j, REC_TAU]
+        for i in range(n):
+            x[i] = rec[j, REC_X + i]
+            xd[i] = rec[j, REC_X + n + i]
+        phase = int(rec[j, REC_MODE])
+        if phase == 0:
+            seg = ctx[CTX_SEG_STICK]
+            _start_stick(
+                seg,
+                sc,
+                x,
+                xd,
+                tau0,
+                beta,
+                ctx[CTX_B],
+                ctx[CTX_W],
+                ctx[CTX_PROJ],
+                ctx[CTX_PHI_S_T_GAMMA_S],
+                ctx[CTX_DSTAT_R2],
+                ctx[CTX_G_COS],
+                ctx[CTX_G_D0],
+                q,
+            )
+            ok = _phase_holds(seg, sc, t_len, h_stick, tol)
+        else:
+            seg = ctx[CTX_SEG_SLIP]
+            # the contact velocity at a section start; 0 at an event, as in run_cycle
+            v0 = _dot(ctx[CTX_B], xd) if rec[j, REC_KIND] == EV_SECTION else 0.0
+            _start_slip(
+                seg, sc, x, xd, tau0, float(phase), v0, beta, ctx[CTX_F_R2], ctx[CTX_PHI_T_GAMMA]
+            )
+            ok = _phase_holds(seg, sc, t_len, h_slip, tol)
+        if not ok:
+            return False
+    return True
+
+
+@njit(cache=True)
+def _check_orbit(r, beta, scene, settings, out, final):
+    """Flag a converged point whose orbit fails :func:`orbit_holds` (never report it).
+
+    The point becomes ``NUMERICAL_FAILURE`` (an event the search could not
+    locate). No-motion points are certified by :func:`never_unsticks` and
+    continuous points at beta = 0 are linear: neither is re-checked.
+    """
+    if out[OUT_CONVERGED] != 1.0 or out[OUT_REGIME] == NO_MOTION or beta == 0.0:
+        return
+    ctx, work, _, _, _ = _context(r, beta, scene, settings)
+    n = (final.shape[0] - 2) // 2
+    X = final[: 2 * n].copy()
+    mode = int(final[2 * n])
+    theta = final[2 * n + 1]
+    if not orbit_holds(X, mode, theta, int(out[OUT_PERIOD]), ctx, work):
+        _undetermined(out, NUMERICAL_FAILURE, out[OUT_CYCLES], out[OUT_IC])
+
+
+@njit(cache=True)
 def run_points(r, beta, scene, settings):
     """Classify every point ``(r[i], beta[i])``.
 
@@ -1374,6 +1666,7 @@ def run_points(r, beta, scene, settings):
     final = np.empty((r.shape[0], 2 * n + 2))
     for i in range(r.shape[0]):
         simulate_point(r[i], beta[i], scene, settings, out[i], final[i])
+        _check_orbit(r[i], beta[i], scene, settings, out[i], final[i])
     return out, final
 
 
