@@ -13,10 +13,13 @@ shooting_after     4       6         8        cycles of plain iteration before s
 max_events         400     2000      8000     events per cycle before EVENT_LIMIT (raised
                                                to 8 Omega_max: a free mode of frequency
                                                Omega reverses the contact 2 Omega times)
-max_work           2e6     2e7       2e8      mode evaluations (one per mode per evaluation
-                                               of the event function) per point before
-                                               WORK_LIMIT: bounds the time of any point
-                                               (about 50 ns each: 1 s for "balanced")
+max_work           2e6     2e7       2e8      work units per point before WORK_LIMIT: one
+                                               per mode per evaluation of a phase (scan,
+                                               certificate, bisection, root solve, orbit
+                                               check) and 4 N^2 per event; the event
+                                               search stops when it is spent, so it
+                                               bounds the time of any point whatever
+                                               the other settings (about 50 ns each)
 growth_factor      1e3     1e4       1e5      section growth (vs. start) flagged UNBOUNDED
 =================  ======  ========  =======  ============================================
 

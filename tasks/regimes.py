@@ -26,7 +26,9 @@ UNBOUNDED = -2
 EVENT_LIMIT = -3
 """Too many events in one cycle (chattering or a degenerate event sequence)."""
 NUMERICAL_FAILURE = -4
-"""A non-finite state or an event that could not be located."""
+"""A non-finite state, an event that could not be located, or a converged orbit
+that fails the orbit invariant (``tasks.kernel.orbit_holds``: a stick phase with
+``|g| > beta`` or a slip phase whose contact velocity changes sign)."""
 WORK_LIMIT = -5
 """The point exceeded its budget of function evaluations (``max_work``): modal
 frequencies far above the excitation (extreme mass or stiffness ratios at
