@@ -244,7 +244,7 @@ def test_work_budget_bounds_a_point_with_tiny_steps():
             t = time.perf_counter()
             res = classify(Scene("ground", 2, 1), [0.1, 0.5], 0.3, fidelity=fidelity,
                            step_fraction=1e-17)
-            print(fidelity, list(res.regime), time.perf_counter() - t)
+            print(fidelity, res.regime.tolist(), time.perf_counter() - t)
         """
     )
     done = subprocess.run(
