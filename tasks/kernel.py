@@ -90,6 +90,10 @@ EVENT_WORK = 4.0
 # stick phases, relative to beta, and samples per shortest modal half-period.
 ORBIT_RTOL = 1e-9
 ORBIT_SAMPLES = 8.0
+# A stick phase ends when |g| exceeds beta by more than this (relative): the
+# rounding of g's terms, as in :func:`never_unsticks` (else a tangential touch of
+# |g| = beta at a no-motion boundary unsticks on rounding noise).
+STICK_RTOL = 1e-12
 
 
 @njit(cache=True)
@@ -702,7 +706,7 @@ def _start_stick(seg, sc, x, xd, tau, beta, b, w, proj, phi_s_t_gamma_s, dstat_r
     sc[OBS0] = g0
     sc[KIND] = KIND_STICK
     sc[SIGN] = 0.0
-    sc[BETA] = beta
+    sc[BETA] = beta * (1.0 + STICK_RTOL)
     return d0
 
 
