@@ -79,7 +79,8 @@ def main() -> None:
     args = ap.parse_args()
     r = np.linspace(0.05, 0.4, args.nr)
     print(
-        "| config | preset | points | converged | violations | worst max|g|/beta | classify s | check s |"
+        "| config | preset | points | converged | violations | worst max|g|/beta "
+        "| classify s | check s |"
     )
     print("|---|---|---|---|---|---|---|---|")
     for name in args.configs.split(","):
@@ -89,8 +90,6 @@ def main() -> None:
             for ri in r:
                 # beta from near 0 to a bit past the static bound of the held contact
                 # (the stick-slip / no-motion boundary is near beta ~ g amplitude)
-                t = classify(scene, ri, 1e9, fidelity=fid)  # held: no motion
-                del t
                 bmax = 1.2 * _g_amp(scene, ri)
                 for bi in np.geomspace(bmax * 1e-3, bmax, args.nb):
                     rr.append(ri)
@@ -103,7 +102,7 @@ def main() -> None:
             bad = 0
             worst = 0.0
             conv = res.converged.astype(bool)
-            for ri, bi in zip(rr[conv], bb[conv]):
+            for ri, bi in zip(rr[conv], bb[conv], strict=True):
                 w, f = orbit_violation(scene, ri, bi, fid)
                 worst = max(worst, w)
                 if w > 1.0 + args.gtol or f:
