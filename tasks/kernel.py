@@ -90,6 +90,7 @@ EVENT_WORK = 4.0
 # stick phases, relative to beta, and samples per shortest modal half-period.
 ORBIT_RTOL = 1e-9
 ORBIT_SAMPLES = 8.0
+ORBIT_MAX_SAMPLES = 4096.0
 # A stick phase ends when |g| exceeds beta by more than this (relative): the
 # rounding of g's terms, as in :func:`never_unsticks` (else a tangential touch of
 # |g| = beta at a no-motion boundary unsticks on rounding noise).
@@ -1528,15 +1529,19 @@ def _event_cap(events):
 def _phase_holds(seg, sc, t_len, h, tol):
     """The invariant through one phase of length ``t_len`` (start already set in ``seg, sc``).
 
-    Samples the observable at spacing at most ``h / ORBIT_SAMPLES`` strictly
-    inside the phase. Stuck: ``|g| <= beta (1 + ORBIT_RTOL) + tol max|g'|`` (the
-    second term is what an event located to ``tol`` can leave). Sliding: the
-    contact velocity keeps the phase's sign, ``s v >= -1e-9 max|v|``.
+    Samples the observable at spacing at most ``h / ORBIT_SAMPLES`` (at most
+    ``ORBIT_MAX_SAMPLES`` per phase) strictly inside the phase. Stuck:
+    ``|g| <= beta (1 + ORBIT_RTOL) + tol max|g'|`` (the second term is what an
+    event located to ``tol`` can leave). Sliding: the contact velocity keeps the
+    phase's sign, ``s v >= -1e-9 max|v|``. Returns 1 (holds), 0 (violated) or -1
+    (the work budget ran out first).
     """
     m = seg.shape[1]
     eta = np.empty(m)
     etad = np.empty(m)
-    n_samples = int(min(max(2.0, ORBIT_SAMPLES * t_len / h), 1e6))
+    n_samples = int(min(max(2.0, ORBIT_SAMPLES * t_len / h), ORBIT_MAX_SAMPLES))
+    if sc[EVALS] + n_samples * (1.0 + m) > sc[WORK_CAP]:
+        return -1
     dt = t_len / (n_samples + 1)
     if sc[KIND] == KIND_STICK:
         slope, _ = derivative_bounds(seg, sc, t_len)
@@ -1544,9 +1549,9 @@ def _phase_holds(seg, sc, t_len, h, tol):
         for i in range(1, n_samples + 1):
             y, _ = evaluate(seg, sc, i * dt, eta, etad)
             if not abs(y) <= limit:
-                return False
+                return 0
         sc[EVALS] += n_samples * (1.0 + m)
-        return True
+        return 1
     s = sc[SIGN]
     vmax = 0.0
     vmin = 0.0
@@ -1556,7 +1561,7 @@ def _phase_holds(seg, sc, t_len, h, tol):
         vmax = max(vmax, abs(v))
         vmin = min(vmin, v)
     sc[EVALS] += n_samples * (1.0 + m)
-    return vmin >= -1e-9 * vmax
+    return 1 if vmin >= -1e-9 * vmax else 0
 
 
 @njit(cache=True)
@@ -1569,6 +1574,7 @@ def orbit_holds(X, mode, theta, period, ctx, work):
     ``ORBIT_RTOL``), through each slip phase the contact velocity keeps its
     sign. Independent of the event search it checks: a missed unsticking or
     reversal shows as a violation. Costs about one period more per point.
+    Returns 1 (holds), 0 (violated) or -1 (the work budget ran out first).
     """
     n = X.shape[0] // 2
     beta = ctx[CTX_BETA]
@@ -1591,7 +1597,7 @@ def orbit_holds(X, mode, theta, period, ctx, work):
                 x, xd, m, stick_start, stats, ctx, work, rec, rec_n, t0, t0 + TWO_PI
             )
             if stats[ST_STATUS] != STATUS_OK:
-                return False
+                return -1 if stats[ST_STATUS] == WORK_LIMIT else 0
         if rec_n[0] < rows:
             break
         rows *= 4
@@ -1634,9 +1640,9 @@ def orbit_holds(X, mode, theta, period, ctx, work):
                 seg, sc, x, xd, tau0, float(phase), v0, beta, ctx[CTX_F_R2], ctx[CTX_PHI_T_GAMMA]
             )
             ok = _phase_holds(seg, sc, t_len, h_slip, tol)
-        if not ok:
-            return False
-    return True
+        if ok != 1:
+            return ok
+    return 1
 
 
 @njit(cache=True)
@@ -1644,7 +1650,8 @@ def _check_orbit(r, beta, scene, settings, out, final):
     """Flag a converged point whose orbit fails :func:`orbit_holds` (never report it).
 
     The point becomes ``NUMERICAL_FAILURE`` (an event the search could not
-    locate). No-motion points are certified by :func:`never_unsticks` and
+    locate), or ``WORK_LIMIT`` if the check ran out of budget (it has a budget
+    of its own, ``max_work``). No-motion points are certified by :func:`never_unsticks` and
     continuous points at beta = 0 are linear: neither is re-checked.
     """
     if out[OUT_CONVERGED] != 1.0 or out[OUT_REGIME] == NO_MOTION or beta == 0.0:
@@ -1654,8 +1661,11 @@ def _check_orbit(r, beta, scene, settings, out, final):
     X = final[: 2 * n].copy()
     mode = int(final[2 * n])
     theta = final[2 * n + 1]
-    if not orbit_holds(X, mode, theta, int(out[OUT_PERIOD]), ctx, work):
+    holds = orbit_holds(X, mode, theta, int(out[OUT_PERIOD]), ctx, work)
+    if holds == 0:
         _undetermined(out, NUMERICAL_FAILURE, out[OUT_CYCLES], out[OUT_IC])
+    elif holds < 0:
+        _undetermined(out, WORK_LIMIT, out[OUT_CYCLES], out[OUT_IC])
 
 
 @njit(cache=True)
