@@ -1487,20 +1487,26 @@ DESIGN_SAMPLES = 64
 
 
 @njit(cache=True)
-def _hermite_extremes(t0, t1, y0, y1, v0, v1, lo_hi):
-    """Fold the extrema of the cubic Hermite interpolant on ``[t0, t1]`` into ``lo_hi``.
+def _hermite_extremes(t0, t1, y0, y1, v0, v1, acc):
+    """Fold the extrema of ``y`` on ``[t0, t1]`` into ``acc``.
 
-    ``y`` and its derivative ``v`` are exact at both ends; a sign change of ``v``
-    marks an interior extremum, located on the cubic (error O(h^4)).
+    ``y`` and its derivative ``v`` are exact at both ends (``acc[4:6]``: the
+    smallest and largest exact value); a sign change of ``v`` marks an interior
+    extremum, located on the cubic Hermite interpolant (``acc[0:2]``: the
+    smallest and largest interpolated value, ``acc[2:4]``: their times, to be
+    evaluated exactly by the caller).
     """
-    if y0 < lo_hi[0]:
-        lo_hi[0] = y0
-    if y0 > lo_hi[1]:
-        lo_hi[1] = y0
-    if y1 < lo_hi[0]:
-        lo_hi[0] = y1
-    if y1 > lo_hi[1]:
-        lo_hi[1] = y1
+    for t, y in ((t0, y0), (t1, y1)):
+        if y < acc[4]:
+            acc[4] = y
+        if y > acc[5]:
+            acc[5] = y
+        if y < acc[0]:
+            acc[0] = y
+            acc[2] = t
+        if y > acc[1]:
+            acc[1] = y
+            acc[3] = t
     if v0 * v1 >= 0.0:
         return
     h = t1 - t0
@@ -1532,10 +1538,12 @@ def _hermite_extremes(t0, t1, y0, y1, v0, v1, lo_hi):
     h01 = s * s * (3.0 - 2.0 * s)
     h11 = s * s * (s - 1.0)
     y = y0 * h00 + h * v0 * h10 + y1 * h01 + h * v1 * h11
-    if y < lo_hi[0]:
-        lo_hi[0] = y
-    if y > lo_hi[1]:
-        lo_hi[1] = y
+    if y < acc[0]:
+        acc[0] = y
+        acc[2] = t0 + s * h
+    if y > acc[1]:
+        acc[1] = y
+        acc[3] = t0 + s * h
 
 
 @njit(cache=True)
@@ -1618,12 +1626,15 @@ def orbit_design(r, beta, scene, settings, state, period, samples, dout):
             i_s += 1
     taus[count - 1] = rec[nr - 1, REC_TAU]
     states = sample_states(ctx, work, rec, taus)
-    lo_hi = np.empty(2)
+    acc = np.empty(6)
+    refine = np.empty(2)
     for which in range(2):
         cf = 0.0 if which == 0 else -c
         for i in range(n):
-            lo_hi[0] = np.inf
-            lo_hi[1] = -np.inf
+            acc[0] = np.inf
+            acc[1] = -np.inf
+            acc[4] = np.inf
+            acc[5] = -np.inf
             for s in range(count - 1):
                 ta = taus[s]
                 tb = taus[s + 1]
@@ -1631,27 +1642,44 @@ def orbit_design(r, beta, scene, settings, state, period, samples, dout):
                 yb = states[s + 1, i] + cf * math.cos(tb)
                 va = states[s, n + i] - cf * math.sin(ta)
                 vb = states[s + 1, n + i] - cf * math.sin(tb)
-                _hermite_extremes(ta, tb, ya, yb, va, vb, lo_hi)
-            dout[which * n + i] = 0.5 * (lo_hi[1] - lo_hi[0])
+                _hermite_extremes(ta, tb, ya, yb, va, vb, acc)
+            # the interpolated extrema evaluated exactly (error O(h^6), never above)
+            refine[0] = min(acc[2], acc[3])
+            refine[1] = max(acc[2], acc[3])
+            exact = sample_states(ctx, work, rec, refine)
+            lo = acc[4]
+            hi = acc[5]
+            for k in range(2):
+                y = exact[k, i] + cf * math.cos(refine[k])
+                lo = min(lo, y)
+                hi = max(hi, y)
+            dout[which * n + i] = 0.5 * (hi - lo)
     if sliding:
         force = beta
     else:  # stuck the whole orbit: the largest |g| (g' = -g_load . (p sin tau + K x'))
-        lo_hi[0] = np.inf
-        lo_hi[1] = -np.inf
+        acc[0] = np.inf
+        acc[1] = -np.inf
+        acc[4] = np.inf
+        acc[5] = -np.inf
         kxd = np.empty(n)
+        gp = _dot(g_load, p)
         for s in range(count - 1):
             ta = taus[s]
             tb = taus[s + 1]
-            xa = states[s, :n].copy()
-            xb = states[s + 1, :n].copy()
-            ga = _contact_force(p, math.cos(ta), K, xa, g_load)
-            gb = _contact_force(p, math.cos(tb), K, xb, g_load)
+            ga = _contact_force(p, math.cos(ta), K, states[s, :n].copy(), g_load)
+            gb = _contact_force(p, math.cos(tb), K, states[s + 1, :n].copy(), g_load)
             _matvec(K, states[s, n:].copy(), kxd)
-            dga = -math.sin(ta) * _dot(g_load, p) - _dot(g_load, kxd)
+            dga = -math.sin(ta) * gp - _dot(g_load, kxd)
             _matvec(K, states[s + 1, n:].copy(), kxd)
-            dgb = -math.sin(tb) * _dot(g_load, p) - _dot(g_load, kxd)
-            _hermite_extremes(ta, tb, ga, gb, dga, dgb, lo_hi)
-        force = max(abs(lo_hi[0]), abs(lo_hi[1]))
+            dgb = -math.sin(tb) * gp - _dot(g_load, kxd)
+            _hermite_extremes(ta, tb, ga, gb, dga, dgb, acc)
+        refine[0] = min(acc[2], acc[3])
+        refine[1] = max(acc[2], acc[3])
+        exact = sample_states(ctx, work, rec, refine)
+        force = max(abs(acc[4]), abs(acc[5]))
+        for k in range(2):
+            g = _contact_force(p, math.cos(refine[k]), K, exact[k, :n].copy(), g_load)
+            force = max(force, abs(g))
     dout[2 * n + DESIGN_FORCE] = force
     dout[2 * n + DESIGN_DISSIPATION] = beta * slip / period
     return count
