@@ -1483,7 +1483,7 @@ def sample_states(ctx, work, rec, taus):
 DESIGN_FORCE = 0  # offset from 2 n
 DESIGN_DISSIPATION = 1  # offset from 2 n
 #: Samples per excitation cycle (at least; more where modal periods are short).
-DESIGN_SAMPLES = 64
+DESIGN_SAMPLES = 32
 
 
 @njit(cache=True)
@@ -1582,19 +1582,25 @@ def orbit_design(r, beta, scene, settings, state, period, samples, dout):
         dout[2 * n + DESIGN_DISSIPATION] = 0.0
         return 0
     theta = state[2 * n + 1]
-    mode = int(state[2 * n])
-    x = state[:n].copy()
-    xd = state[n : 2 * n].copy()
-    rows = period * (ctx[CTX_MAX_EVENTS] + 4)
-    rec = np.zeros((rows, REC_X + 2 * n))
+    rows = 32 * period  # grown (and the orbit replayed) if the events do not fit
+    rec = np.zeros((0, REC_X + 2 * n))
     rec_n = np.zeros(1, dtype=np.int64)
     stats = np.zeros(N_STATS)
-    stick_start = theta
-    for k in range(period):
-        t0 = theta + TWO_PI * k
-        mode, stick_start = run_cycle(
-            x, xd, mode, stick_start, stats, ctx, work, rec, rec_n, t0, t0 + TWO_PI
-        )
+    while True:
+        rec = np.empty((rows, REC_X + 2 * n))
+        rec_n[0] = 0
+        mode = int(state[2 * n])
+        x = state[:n].copy()
+        xd = state[n : 2 * n].copy()
+        stick_start = theta
+        for k in range(period):
+            t0 = theta + TWO_PI * k
+            mode, stick_start = run_cycle(
+                x, xd, mode, stick_start, stats, ctx, work, rec, rec_n, t0, t0 + TWO_PI
+            )
+        if rec_n[0] < rows or rows > period * (ctx[CTX_MAX_EVENTS] + 4):
+            break
+        rows *= 8
     nr = rec_n[0]
     rec = rec[:nr]
     # sample times: every phase start and end, and at most h apart inside a phase
