@@ -51,10 +51,7 @@ def main() -> None:
     print("|---|---|---|---|")
     for name, scene in SCENES.items():
         t_cls, t_des, n = measure(scene, n_r, n_beta)
-        print(
-            f"| {name} | {1e3 * t_cls / n:.3f} | {1e3 * t_des / n:.3f} | "
-            f"{t_des / t_cls:.2f} |"
-        )
+        print(f"| {name} | {1e3 * t_cls / n:.3f} | {1e3 * t_des / n:.3f} | {t_des / t_cls:.2f} |")
 
 
 if __name__ == "__main__":

@@ -65,7 +65,9 @@ def _classify_points(task: dict) -> dict:
     gamma = task.get("gamma", np.full(n, np.nan))
     kappa = task.get("kappa", np.full(n, np.nan))
     dof = int(task["scene"]["dof"])
-    out = {name: np.zeros(field_shape(name, (n,), dof), dtype=dt) for name, (dt, _) in FIELDS.items()}
+    out = {
+        name: np.zeros(field_shape(name, (n,), dof), dtype=dt) for name, (dt, _) in FIELDS.items()
+    }
     pairs = np.stack([gamma, kappa], axis=1)
     for g, k in np.unique(pairs, axis=0):
         sel = (np.isnan(gamma) if np.isnan(g) else gamma == g) & (

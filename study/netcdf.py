@@ -383,7 +383,8 @@ def write_result(
                 ds.to_netcdf(tmp, engine="netcdf4", format="NETCDF4", encoding=enc)
             else:
                 tree = xr.DataTree.from_dict(
-                    {"/": xr.Dataset(attrs=root_attrs(gattrs, list(built)))} | {f"/{n}": ds for n, (ds, _) in built.items()}
+                    {"/": xr.Dataset(attrs=root_attrs(gattrs, list(built)))}
+                    | {f"/{n}": ds for n, (ds, _) in built.items()}
                 )
                 tree.to_netcdf(
                     tmp,

@@ -15,7 +15,7 @@ import pytest
 import xarray as xr
 
 from study import Study, run_study
-from tasks import Scene, classify, regimes
+from tasks import Scene, classify
 from tasks.result import FIELDS, FLAGS, MASS_FIELDS
 
 matplotlib.use("Agg")
@@ -38,9 +38,16 @@ def client():
     from distributed import Client, LocalCluster
 
     classify(Scene("ground", 2), np.array([1.0]), np.array([0.3]))  # kernels cached for workers
-    with LocalCluster(
-        n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None
-    ) as cluster, Client(cluster) as c:
+    with (
+        LocalCluster(
+            n_workers=2,
+            threads_per_worker=1,
+            processes=True,
+            host="127.0.0.1",
+            dashboard_address=None,
+        ) as cluster,
+        Client(cluster) as c,
+    ):
         yield c
 
 
