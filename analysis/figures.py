@@ -150,7 +150,8 @@ def scene_title(ds: xr.Dataset, swept: bool = True) -> str:
     if contact is None or dof is None:
         return str(attrs.get("scene_label") or attrs.get("scene_name", ""))
     where = f"m_{j}-m_{int(j) + 1}" if contact == "mass" else f"m_{j}"
-    parts = [f"{dof}DOF, {CONTACT_NAMES.get(contact, contact)} on {where}"]
+    size = "SDOF" if int(dof) == 1 else f"{dof}DOF"
+    parts = [f"{size}, {CONTACT_NAMES.get(contact, contact)} on {where}"]
     if int(dof) > 1:
         for name, sym in (("gamma", "$\\gamma$"), ("kappa", "$\\kappa$")):
             if name in ds.coords and ds[name].ndim == 0:
@@ -496,12 +497,13 @@ def deviation_figure(
     -------
     matplotlib.figure.Figure
     """
-    fig = new_figure(7.4, 5.0)
+    fig = new_figure(7.8, 5.6)
     axes = fig.subplots(2, 1, sharex=True)
     unit = step if step and step > 0 else 1.0
     handles: dict[str, Line2D] = {}
     numerical = "traced" if traced else "grid"
     for ax, name in zip(axes, BOUNDARIES, strict=True):
+        counts: list[str] = []
         ax.axhline(0.0, color="0.6", linewidth=0.8)
         if step:
             ax.axhspan(-0.5, 0.5, color="0.9", zorder=0)
@@ -522,21 +524,14 @@ def deviation_figure(
             )
             line.set_label(f"{method} closed form")
             handles.setdefault(method, line)
-            finite = np.isfinite(d)
-            ax.annotate(
-                f"{method}: {int(finite.sum())}/{d.size} columns compared",
-                xy=(1.0, 1.0),
-                xycoords="axes fraction",
-                xytext=(-4, -4 - 11 * list(agreements).index(method)),
-                textcoords="offset points",
-                ha="right",
-                va="top",
-                fontsize="x-small",
-                color=_METHOD_COLOURS.get(method, "0.2"),
-            )
+            counts.append(f"{method} {int(np.isfinite(d).sum())}/{d.size}")
         what = "steps of beta" if step else "beta"
         ax.set_ylabel(rf"$\Delta\beta_{{\mathrm{{{name}}}}}$ ({what})", fontsize="small")
-        ax.set_title(f"{name} boundary: {numerical} $-$ closed form", fontsize="medium")
+        ax.set_title(
+            f"{name} boundary: {numerical} $-$ closed form\n"
+            f"(columns compared: {', '.join(counts)})",
+            fontsize="small",
+        )
     axes[-1].set_xlabel(R_LABEL)
     legend = list(handles.values())
     if step:
@@ -586,23 +581,31 @@ def response_figure(
     r = ds["r"].values
     beta = ds["beta"].values
     picks = np.unique(np.linspace(0, beta.size - 1, min(n_beta, beta.size)).round().astype(int))
+    values = amp.values
+    positive = values[np.isfinite(values) & (values > 0)]
+    hi = float(positive.max()) if positive.size else 1.0
+    floor = max(float(positive.min()) if positive.size else 1e-3, 1e-4 * hi)
+    clipped = np.where(np.isfinite(values), np.maximum(values, floor), np.nan)
+    envelope = np.maximum(best["amplitude_minimum"].values, floor)
     fig = new_figure(7.6, 6.2)
     top, bottom = fig.subplots(2, 1, sharex=True, height_ratios=[3, 2])
     cmap = colormaps["viridis"]
     handles = []
     for n, i in enumerate(picks):
         colour = cmap(n / max(1, len(picks) - 1))
-        (line,) = top.plot(r, amp.values[i], color=colour, linewidth=1.1)
+        (line,) = top.plot(r, clipped[i], color=colour, linewidth=1.1)
         line.set_label(rf"$\beta$ = {beta[i]:.3g}")
         handles.append(line)
-    (env,) = top.plot(
-        r, best["amplitude_minimum"].values, color="k", linewidth=2.2, alpha=0.55, zorder=1
-    )
+    (env,) = top.plot(r, envelope, color="k", linewidth=2.2, alpha=0.55, zorder=1)
     env.set_label("smallest over the grid's $\\beta$")
     handles.append(env)
     top.set_yscale("log")
+    top.set_ylim(0.7 * floor, 1.5 * hi)
     which = "absolute" if frame == "absolute" else "relative to the base"
-    top.set_ylabel(f"amplitude of $m_{{{mass}}}$ / Y ({which})", fontsize="small")
+    top.set_ylabel(
+        f"amplitude of $m_{{{mass}}}$ / Y ({which});\nsmaller values (stuck: 0) at the bottom",
+        fontsize="small",
+    )
     top.set_xlim(float(r.min()), float(r.max()))
     bottom.plot(r, best["beta_optimal"].values, "k.-", linewidth=0.9, markersize=3)
     for m in available_methods(ds, ("exact",)):
