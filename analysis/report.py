@@ -394,7 +394,7 @@ def _scene_figures(
                 traced=scene_kind(ds) == "trace",
             )
         )
-    if scene_kind(ds) == "grid" and "amplitude" in ds.data_vars:
+    if scene_kind(ds) == "grid" and "mass" in ds.get("amplitude", xr.DataArray()).dims:
         paths.append(figures.save_response(ds, out_dir / f"{stem}_response.png"))
     return paths
 
