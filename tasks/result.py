@@ -11,7 +11,7 @@ from tasks.regimes import INITIAL_CONDITIONS, cf_flag_attributes
 #: Output fields of :func:`tasks.classify`, their dtypes and meanings (one home,
 #: reused by the study layer for netCDF variables).
 FIELDS: dict[str, tuple[str, str]] = {
-    "regime": ("int8", "steady-state motion regime code (tasks.regimes)"),
+    "regime": ("int8", "steady-state motion regime (codes: tasks.regimes)"),
     "converged": ("bool", "a periodic steady state was found and verified"),
     "cycles": ("int32", "excitation cycles simulated (shooting cycles included)"),
     "stops_per_cycle": (
@@ -46,11 +46,24 @@ FIELDS: dict[str, tuple[str, str]] = {
 
 #: CF attributes of the coordinates of a result (stored or in memory).
 COORD_ATTRS: dict[str, dict[str, str]] = {
-    "r": {"long_name": "frequency ratio r_1 = omega sqrt(m_1/k_1) (Eq. 7)", "units": "1"},
-    "beta": {"long_name": "friction ratio beta = F/(k_1 Y) (Eq. 8)", "units": "1"},
-    "gamma": {"long_name": "mass ratio m_i/m_1 of every mass i = 2..N (Eq. 66)", "units": "1"},
+    "r": {
+        "long_name": "frequency ratio r_1",
+        "comment": "r_1 = omega sqrt(m_1/k_1) (Eq. 7)",
+        "units": "1",
+    },
+    "beta": {
+        "long_name": "friction ratio beta",
+        "comment": "beta = F/(k_1 Y) (Eq. 8)",
+        "units": "1",
+    },
+    "gamma": {
+        "long_name": "mass ratio gamma",
+        "comment": "gamma_i = m_i/m_1 of every mass i = 2..N (Eq. 66)",
+        "units": "1",
+    },
     "kappa": {
-        "long_name": "stiffness ratio k_i/k_1 of every spring i = 2..N (Eq. 67)",
+        "long_name": "stiffness ratio kappa",
+        "comment": "kappa_i = k_i/k_1 of every spring i = 2..N (Eq. 67)",
         "units": "1",
     },
     "mass": {"long_name": "index i of the mass m_i (1 = the mass on spring k_1)", "units": "1"},
