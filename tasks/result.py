@@ -24,23 +24,23 @@ FIELDS: dict[str, tuple[str, str]] = {
     "initial_condition": ("int8", "initial condition used (tasks.regimes.INITIAL_CONDITIONS)"),
     "amplitude": (
         "float64",
-        "displacement amplitude of each mass (half peak-to-peak of x_i over the steady-state "
-        "period; absolute displacement / Y)",
+        "displacement amplitude of each mass (half peak-to-peak of x_i / Y over the "
+        "steady-state period; absolute displacement)",
     ),
     "amplitude_relative": (
         "float64",
         "displacement amplitude of each mass relative to the base (half peak-to-peak of "
-        "x_i - y over the steady-state period, / Y)",
+        "(x_i - y) / Y over the steady-state period)",
     ),
     "contact_force_amplitude": (
         "float64",
-        "largest friction force magnitude over the steady-state period, / (k_1 Y) "
-        "(beta whenever the contact slides)",
+        "largest friction force over the steady-state period (/ (k_1 Y); beta whenever "
+        "the contact slides)",
     ),
     "dissipation": (
         "float64",
-        "energy dissipated by the contact per excitation cycle, / (k_1 Y^2): beta times "
-        "the slip distance per cycle (docs/theory.md 2)",
+        "energy dissipated by the contact per excitation cycle (/ (k_1 Y^2): beta times "
+        "the slip distance per cycle, docs/theory.md 2)",
     ),
 }
 
@@ -92,9 +92,14 @@ FLAGS: dict[str, dict[str, object]] = {
 
 
 def field_attrs(name: str) -> dict[str, object]:
-    """CF attributes of a result field: ``long_name``, ``units`` and, for coded
-    fields, ``flag_values`` / ``flag_meanings`` (``regime``: :mod:`tasks.regimes`)."""
-    attrs: dict[str, object] = {"long_name": FIELDS[name][1]}
+    """CF attributes of a result field: ``long_name`` (and the full meaning as
+    ``comment``), ``units`` and, for coded fields, ``flag_values`` /
+    ``flag_meanings`` (``regime``: :mod:`tasks.regimes`)."""
+    meaning = FIELDS[name][1]
+    short = meaning.split(" (")[0]  # the name; the details go to the comment
+    attrs: dict[str, object] = {"long_name": short}
+    if short != meaning:
+        attrs["comment"] = meaning
     if name == "regime":
         attrs.update(cf_flag_attributes())
     elif name in FLAGS:
