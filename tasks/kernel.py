@@ -1484,6 +1484,9 @@ DESIGN_FORCE = 0  # offset from 2 n
 DESIGN_DISSIPATION = 1  # offset from 2 n
 #: Samples per excitation cycle (at least; more where modal periods are short).
 DESIGN_SAMPLES = 32
+#: Samples per excitation cycle at most (very stiff chains: the modes far above
+#: the excitation are then resolved only as far as this allows).
+DESIGN_MAX_SAMPLES = 4096
 
 
 @njit(cache=True)
@@ -1598,6 +1601,12 @@ def orbit_design(r, beta, scene, settings, state, period, samples, dout):
             mode, stick_start = run_cycle(
                 x, xd, mode, stick_start, stats, ctx, work, rec, rec_n, t0, t0 + TWO_PI
             )
+            if stats[ST_STATUS] != STATUS_OK:
+                break
+        if stats[ST_STATUS] != STATUS_OK:  # the replay ran out of budget: no answer
+            for i in range(dout.shape[0]):
+                dout[i] = np.nan
+            return 0
         if rec_n[0] < rows or rows > period * (ctx[CTX_MAX_EVENTS] + 4):
             break
         rows *= 8
@@ -1605,6 +1614,7 @@ def orbit_design(r, beta, scene, settings, state, period, samples, dout):
     rec = rec[:nr]
     # sample times: every phase start and end, and at most h apart inside a phase
     h = min(TWO_PI / samples, 0.5 * min(ctx[CTX_H_SLIP], ctx[CTX_H_STICK]))
+    h = max(h, TWO_PI / DESIGN_MAX_SAMPLES)
     count = 1
     for j in range(nr - 1):
         length = rec[j + 1, REC_TAU] - rec[j, REC_TAU]
