@@ -167,8 +167,9 @@ def _summary(scores: Mapping[str, Mapping[str, Agreement]], kinds: Mapping[str, 
 def _scene_header(name: str, ds: xr.Dataset) -> list[str]:
     attrs = ds.attrs
     lines = [f"## Scene `{name}`", ""]
-    if attrs.get("scene_label"):
-        lines += [f"{attrs['scene_label']}", ""]
+    title = figures.scene_title(ds)
+    if title:
+        lines += [title, ""]
     facts = [
         ("contact", attrs.get("contact")),
         ("dof", attrs.get("dof")),
