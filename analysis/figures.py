@@ -63,6 +63,19 @@ _METHOD_MARKERS: dict[str, dict[str, object]] = {
 }
 _METHOD_COLOURS: dict[str, str] = {"paper": "#d62728", "exact": "#1f77b4"}
 _PAD = 0.03  # fraction of the axis range by which clipped values overshoot it
+#: Axis names of the paper: r_1 = omega sqrt(m_1/k_1) (Eq. 7) and beta (Eq. 8).
+R_LABEL = r"$r_1$"
+BETA_LABEL = r"$\beta$"
+#: Vertical marks: resonances of the frictionless chain and antiresonances of the contact.
+_MARKS = {
+    "resonance": {"color": "#7b1fa2", "linestyle": (0, (4, 2)), "linewidth": 0.9},
+    "antiresonance": {"color": "#2e7d32", "linestyle": (0, (1, 1.5)), "linewidth": 1.2},
+}
+CONTACT_NAMES = {
+    "ground": "ground-fixed wall",
+    "base": "base-fixed wall",
+    "mass": "contact between masses",
+}
 
 
 # --------------------------------------------------------------------------- helpers
@@ -116,6 +129,69 @@ def boundary_handles(methods: Sequence[str], numerical: bool = False) -> list[Li
     return out
 
 
+def _ratio_text(value: object) -> str:
+    if isinstance(value, list | tuple):
+        return "[" + ", ".join(f"{float(v):g}" for v in value) + "]"
+    return f"{float(value):g}"
+
+
+def scene_title(ds: xr.Dataset, swept: bool = True) -> str:
+    """``2DOF, ground-fixed wall on m_1, gamma = 1, kappa = 0.5`` from a scene's attributes
+    and its scalar gamma / kappa coordinates (swept ratios: ``gamma swept`` unless
+    ``swept`` is False, for a figure whose panels name them)."""
+    import json
+
+    attrs = ds.attrs
+    contact, dof, j = attrs.get("contact"), attrs.get("dof"), attrs.get("contact_mass")
+    scene = json.loads(attrs["scene"]) if "scene" in attrs else {}
+    contact = contact or scene.get("contact")
+    dof = dof or scene.get("dof")
+    j = j or scene.get("contact_mass", 1)
+    if contact is None or dof is None:
+        return str(attrs.get("scene_label") or attrs.get("scene_name", ""))
+    where = f"m_{j}-m_{int(j) + 1}" if contact == "mass" else f"m_{j}"
+    size = "SDOF" if int(dof) == 1 else f"{dof}DOF"
+    parts = [f"{size}, {CONTACT_NAMES.get(contact, contact)} on {where}"]
+    if int(dof) > 1:
+        for name, sym in (("gamma", "$\\gamma$"), ("kappa", "$\\kappa$")):
+            if name in ds.coords and ds[name].ndim == 0:
+                parts.append(f"{sym} = {float(ds[name]):g}")
+            elif name in ds.dims:
+                if swept:
+                    parts.append(f"{sym} swept")
+            elif name in scene:
+                parts.append(f"{sym} = {_ratio_text(scene[name])}")
+    return ", ".join(parts)
+
+
+def mark_frequencies(ax: Axes, ds: xr.Dataset) -> set[str]:
+    """Vertical lines at the resonances and antiresonances within the r range of ``ax``
+    (:func:`analysis.design.characteristic_r`); returns the kinds drawn."""
+    from analysis.design import characteristic_r, scene_of
+
+    scene = scene_of(ds)
+    if scene is None:
+        return set()
+    lo, hi = ax.get_xlim()
+    res, anti = characteristic_r(scene, hi)
+    drawn = set()
+    for kind, values in (("resonance", res), ("antiresonance", anti)):
+        for x in values:
+            if lo < x < hi:
+                ax.axvline(x, zorder=1.5, **_MARKS[kind])
+                drawn.add(kind)
+    return drawn
+
+
+def frequency_handles(kinds: set[str]) -> list[Line2D]:
+    """Legend lines for :func:`mark_frequencies`."""
+    names = {
+        "resonance": "resonance (contact sliding freely)",
+        "antiresonance": "antiresonance of the contact",
+    }
+    return [Line2D([], [], label=names[k], **_MARKS[k]) for k in _MARKS if k in kinds]
+
+
 # --------------------------------------------------------------------------- drawing
 def draw_regime_map(
     ax: Axes,
@@ -157,8 +233,8 @@ def draw_regime_map(
     )
     ax.set_xlim(_edges(r[ir])[[0, -1]])
     ax.set_ylim(_edges(beta[ib])[[0, -1]])
-    ax.set_xlabel("r")
-    ax.set_ylabel(r"$\beta$")
+    ax.set_xlabel(R_LABEL)
+    ax.set_ylabel(BETA_LABEL)
     return set(codes)
 
 
@@ -205,7 +281,8 @@ def _bounds_of(ds: xr.Dataset, methods: Sequence[str]) -> dict[str, tuple[np.nda
 
 
 def _plane_title(coords: Mapping[str, float]) -> str:
-    return ", ".join(f"{k} = {v:g}" for k, v in coords.items())
+    sym = {"gamma": r"$\gamma$", "kappa": r"$\kappa$"}
+    return ", ".join(f"{sym.get(k, k)} = {v:g}" for k, v in coords.items())
 
 
 def _beta_range(ds: xr.Dataset, values: Sequence[np.ndarray]) -> tuple[float, float]:
@@ -220,8 +297,12 @@ def _beta_range(ds: xr.Dataset, values: Sequence[np.ndarray]) -> tuple[float, fl
     return 0.0, hi if hi > 0 else 1.0
 
 
-def _draw_plane(ax: Axes, plane: xr.Dataset, kind: str, methods: Sequence[str]) -> set[int]:
-    """One panel: a regime map with bounds (grid) or the bounds alone (trace)."""
+def _draw_plane(
+    ax: Axes, plane: xr.Dataset, kind: str, methods: Sequence[str], marks: set[str] | None = None
+) -> set[int]:
+    """One panel: a regime map with bounds (grid) or the bounds alone (trace), with the
+    resonances and antiresonances marked (their kinds added to ``marks``)."""
+    marks = set() if marks is None else marks
     r = plane["r"].values
     bounds = _bounds_of(plane, methods)
     if kind == "trace":
@@ -232,14 +313,16 @@ def _draw_plane(ax: Axes, plane: xr.Dataset, kind: str, methods: Sequence[str]) 
         bounds["numerical"] = numerical
         lo, hi = _beta_range(plane, [v for pair in bounds.values() for v in pair])
         ax.set_xlim(float(np.min(r)), float(np.max(r)))
-        ax.set_xlabel("r")
-        ax.set_ylabel(r"$\beta$")
+        ax.set_xlabel(R_LABEL)
+        ax.set_ylabel(BETA_LABEL)
         draw_boundaries(ax, r, bounds, (lo, hi), BOUNDARY_COLOURS)
+        marks |= mark_frequencies(ax, plane)
         return set()
     codes = draw_regime_map(
         ax, regime_codes(plane["regime"].transpose("r", "beta")), r, plane["beta"].values
     )
     draw_boundaries(ax, r, bounds)
+    marks |= mark_frequencies(ax, plane)
     return codes
 
 
@@ -281,12 +364,13 @@ def regime_map_figure(ds: xr.Dataset, title: str | None = None) -> Figure:
     fig = new_figure(3.6 * ncols + 1.6, 3.0 * nrows + 0.6)
     axes = fig.subplots(nrows, ncols, squeeze=False, sharex=True, sharey=True)
     codes: set[int] = set()
+    marks: set[str] = set()
     planes = list(np.ndindex(*sizes.values())) if sweeps else [()]
     for n, idx in enumerate(planes):
         ax = axes.flat[n]
         sel = dict(zip(sweeps, idx, strict=True))
         plane = ds.isel(sel) if sel else ds
-        codes |= _draw_plane(ax, plane, kind, methods)
+        codes |= _draw_plane(ax, plane, kind, methods, marks)
         if sel:
             ax.set_title(_plane_title({d: float(ds[d].values[i]) for d, i in sel.items()}))
         if not ax.get_subplotspec().is_first_col():
@@ -300,8 +384,9 @@ def regime_map_figure(ds: xr.Dataset, title: str | None = None) -> Figure:
         handles += [
             Line2D([], [], color=BOUNDARY_COLOURS[b], label=f"{b} boundary") for b in BOUNDARIES
         ]
+    handles += frequency_handles(marks)
     fig.legend(handles=handles, loc="outside right center", fontsize="small")
-    fig.suptitle(title or ds.attrs.get("scene_label") or ds.attrs.get("scene_name", ""))
+    fig.suptitle(title or scene_title(ds, swept=False))
     return fig
 
 
@@ -363,8 +448,8 @@ def points_figure(
                 zorder=3,
             )
             ax.set_title(f"{method}: {int(wrong.sum())} misclassified")
-        ax.set_xlabel("r")
-    axes[0].set_ylabel(r"$\beta$")
+        ax.set_xlabel(R_LABEL)
+    axes[0].set_ylabel(BETA_LABEL)
     handles = regime_handles(codes) + [
         Line2D(
             [],
@@ -378,15 +463,24 @@ def points_figure(
         )
     ]
     fig.legend(handles=handles, loc="outside right center", fontsize="small")
-    fig.suptitle(title or ds.attrs.get("scene_label") or ds.attrs.get("scene_name", ""))
+    fig.suptitle(title or scene_title(ds))
     return fig
 
 
-def deviation_figure(agreements: Mapping[str, Agreement], title: str | None = None) -> Figure:
+def deviation_figure(
+    agreements: Mapping[str, Agreement],
+    title: str | None = None,
+    step: float | None = None,
+    traced: bool = False,
+) -> Figure:
     """Numerical minus closed-form boundary vs r, both boundaries, one line per method.
 
-    Pooled sweeps (r repeats) are drawn as markers only. Columns without a
-    finite deviation (open brackets, infinite bounds) are left out.
+    With ``step`` (the beta step of the map) deviations are drawn in grid steps
+    and the band of half a step, the resolution of a boundary read from the
+    grid, is shaded: a closed form inside it is as right as the grid can tell.
+    Columns without a finite deviation (open brackets, infinite bounds) leave
+    gaps, never lines across them; pooled sweeps (r repeats) are markers only.
+    The legend is outside the axes.
 
     Parameters
     ----------
@@ -394,38 +488,147 @@ def deviation_figure(agreements: Mapping[str, Agreement], title: str | None = No
         Per method, from :func:`analysis.scoring.score_dataset`.
     title : str, optional
         Figure title.
+    step : float, optional
+        Grid step of beta (grid maps) or tolerance unit of a traced boundary.
+    traced : bool
+        The numerical boundaries were traced by bisection (labels say so).
 
     Returns
     -------
     matplotlib.figure.Figure
     """
-    fig = new_figure(6.4, 5.0)
+    fig = new_figure(7.8, 5.6)
     axes = fig.subplots(2, 1, sharex=True)
+    unit = step if step and step > 0 else 1.0
+    handles: dict[str, Line2D] = {}
+    numerical = "traced" if traced else "grid"
     for ax, name in zip(axes, BOUNDARIES, strict=True):
+        counts: list[str] = []
         ax.axhline(0.0, color="0.6", linewidth=0.8)
+        if step:
+            ax.axhspan(-0.5, 0.5, color="0.9", zorder=0)
         for method, a in agreements.items():
             dev = a.deviations.get(name)
             if dev is None:
                 continue
-            r, d = dev.r, dev.deviation
-            ok = np.isfinite(d)
+            r, d = dev.r, dev.deviation / unit
             repeated = np.unique(r).size < r.size
-            order = np.argsort(r[ok], kind="stable")
-            ax.plot(
-                r[ok][order],
-                d[ok][order],
+            order = np.argsort(r, kind="stable")
+            (line,) = ax.plot(
+                r[order],
+                d[order],  # NaN where nothing is compared: a gap
                 linestyle="none" if repeated else LINESTYLES.get(method, "-"),
                 color=_METHOD_COLOURS.get(method, "0.2"),
+                linewidth=0.9,
                 **_METHOD_MARKERS.get(method, {"marker": "o", "markersize": 3.5}),
-                label=f"{method} ({dev.n_compared}/{dev.n_columns} columns)",
             )
-        ax.set_ylabel(rf"$\Delta\beta_{{\mathrm{{{name}}}}}$")
-        ax.set_title(f"{name} boundary: numerical $-$ closed form", fontsize="medium")
-        if ax.has_data() and ax.get_legend_handles_labels()[0]:
-            ax.legend(fontsize="small")
-    axes[-1].set_xlabel("r")
+            line.set_label(f"{method} closed form")
+            handles.setdefault(method, line)
+            counts.append(f"{method} {int(np.isfinite(d).sum())}/{d.size}")
+        what = "steps of beta" if step else "beta"
+        ax.set_ylabel(rf"$\Delta\beta_{{\mathrm{{{name}}}}}$ ({what})", fontsize="small")
+        ax.set_title(
+            f"{name} boundary: {numerical} $-$ closed form\n"
+            f"(columns compared: {', '.join(counts)})",
+            fontsize="small",
+        )
+    axes[-1].set_xlabel(R_LABEL)
+    legend = list(handles.values())
+    if step:
+        legend.append(Patch(facecolor="0.9", label="within half a grid step"))
+    if legend:
+        fig.legend(handles=legend, loc="outside right center", fontsize="small")
     if title:
         fig.suptitle(title)
+    return fig
+
+
+def response_figure(
+    ds: xr.Dataset,
+    mass: int = 1,
+    frame: str = "absolute",
+    n_beta: int = 7,
+    title: str | None = None,
+) -> Figure:
+    """Den Hartog's plot, generalised: the amplitude of one mass against r for several beta,
+    the smallest amplitude over the grid's beta, and the beta that gives it.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        One (gamma, kappa) plane of a grid scene with the design quantities
+        (a swept scene: its first plane).
+    mass : int
+        The mass whose amplitude is shown (1 = the mass on spring k_1).
+    frame : {"absolute", "relative"}
+        Absolute displacement, or relative to the base.
+    n_beta : int
+        Number of beta values of the grid drawn as curves (evenly spread).
+    title : str, optional
+        Figure title (default: the scene).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    from matplotlib import colormaps
+
+    from analysis.design import optimal_beta, response
+
+    ds = ds.isel({d: 0 for d in sweep_dims(ds)})
+    amp = response(ds, mass, frame).transpose("beta", "r")
+    best = optimal_beta(ds, mass, frame)
+    r = ds["r"].values
+    beta = ds["beta"].values
+    picks = np.unique(np.linspace(0, beta.size - 1, min(n_beta, beta.size)).round().astype(int))
+    values = amp.values
+    positive = values[np.isfinite(values) & (values > 0)]
+    hi = float(positive.max()) if positive.size else 1.0
+    floor = max(float(positive.min()) if positive.size else 1e-3, 1e-4 * hi)
+    clipped = np.where(np.isfinite(values), np.maximum(values, floor), np.nan)
+    envelope = np.maximum(best["amplitude_minimum"].values, floor)
+    fig = new_figure(7.6, 6.2)
+    top, bottom = fig.subplots(2, 1, sharex=True, height_ratios=[3, 2])
+    cmap = colormaps["viridis"]
+    handles = []
+    for n, i in enumerate(picks):
+        colour = cmap(n / max(1, len(picks) - 1))
+        (line,) = top.plot(r, clipped[i], color=colour, linewidth=1.1)
+        line.set_label(rf"$\beta$ = {beta[i]:.3g}")
+        handles.append(line)
+    (env,) = top.plot(r, envelope, color="k", linewidth=2.2, alpha=0.55, zorder=1)
+    env.set_label("smallest over the grid's $\\beta$")
+    handles.append(env)
+    top.set_yscale("log")
+    top.set_ylim(0.7 * floor, 1.5 * hi)
+    which = "absolute" if frame == "absolute" else "relative to the base"
+    top.set_ylabel(
+        f"amplitude of $m_{{{mass}}}$ / Y ({which});\nsmaller values (stuck: 0) at the bottom",
+        fontsize="small",
+    )
+    top.set_xlim(float(r.min()), float(r.max()))
+    bottom.plot(r, best["beta_optimal"].values, "k.-", linewidth=0.9, markersize=3)
+    for m in available_methods(ds, ("exact",)):
+        for name in BOUNDARIES:
+            bottom.plot(
+                r,
+                clip_to(ds[f"beta_{name}_{m}"].values, float(beta.min()), float(beta.max())),
+                color=BOUNDARY_COLOURS[name],
+                linewidth=0.8,
+                linestyle=LINESTYLES[m],
+            )
+    bottom.set_ylim(float(beta.min()), float(beta.max()))
+    bottom.set_ylabel(r"$\beta$ of the smallest amplitude", fontsize="small")
+    bottom.set_xlabel(R_LABEL)
+    marks = mark_frequencies(top, ds) | mark_frequencies(bottom, ds)
+    handles.append(Line2D([], [], color="k", marker=".", label=r"optimal $\beta$ (grid)"))
+    handles += [
+        Line2D([], [], color=BOUNDARY_COLOURS[b], linewidth=0.8, label=f"{b} boundary (exact)")
+        for b in BOUNDARIES
+    ]
+    handles += frequency_handles(marks)
+    fig.legend(handles=handles, loc="outside right center", fontsize="small")
+    fig.suptitle(title or scene_title(ds))
     return fig
 
 
@@ -441,6 +644,11 @@ def save_figure(fig: Figure, path: str | os.PathLike, dpi: int = 110) -> Path:
 def save_regime_map(ds: xr.Dataset, path: str | os.PathLike, dpi: int = 110) -> Path:
     """Write :func:`regime_map_figure` of a scene as PNG."""
     return save_figure(regime_map_figure(ds), path, dpi)
+
+
+def save_response(ds: xr.Dataset, path: str | os.PathLike, dpi: int = 110, **kw) -> Path:
+    """Write :func:`response_figure` of a scene as PNG."""
+    return save_figure(response_figure(ds, **kw), path, dpi)
 
 
 def save_deviation(

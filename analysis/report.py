@@ -20,6 +20,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 import netCDF4
+import numpy as np
 import xarray as xr
 
 from analysis import figures
@@ -75,7 +76,8 @@ def open_result(path: str | os.PathLike) -> tuple[dict[str, xr.Dataset], dict[st
 
 def _needed(ds: xr.Dataset) -> xr.Dataset:
     """The variables the report reads (regime and boundaries), attributes kept."""
-    keep = [v for v in ds.data_vars if v == "regime" or str(v).startswith("beta_")]
+    wanted = ("regime", "amplitude", "amplitude_relative")
+    keep = [v for v in ds.data_vars if v in wanted or str(v).startswith("beta_")]
     return ds[keep].assign_attrs(ds.attrs)
 
 
@@ -89,9 +91,26 @@ def _num(x: float, digits: int = 4) -> str:
     return f"{x:.{digits}g}"
 
 
+def percent(num: int, den: int, digits: int = 2) -> str:
+    """``num / den`` in percent, never rounded to 100 % (or 0 %) unless exactly so.
+
+    ``percent(7, 8) == "87.50 %"``, ``percent(24994, 24995) == "99.996 %"``; more
+    digits are shown until a miss (or a hit) is visible, up to 6 decimals, then
+    ``"> 99.999999 %"`` (``"< 0.000001 %"``).
+    """
+    if den == 0:
+        return "n/a"
+    value = 100.0 * num / den
+    for d in range(digits, 7):
+        text = f"{value:.{d}f}"
+        if (num == den or float(text) < 100.0) and (num == 0 or float(text) > 0.0):
+            return f"{text} %"
+    return f"> {100 - 1e-6:.6f} %" if num < den and num > 0 and value > 50 else f"< {1e-6:.6f} %"
+
+
 def _pct(num: int, den: int) -> str:
     """``87.50 % (7/8)``, or ``n/a (0/0)``."""
-    return f"{100.0 * num / den:.2f} % ({num}/{den})" if den else f"n/a ({num}/{den})"
+    return f"{percent(num, den)} ({num}/{den})"
 
 
 def _table(header: Sequence[str], rows: Iterable[Sequence[object]]) -> list[str]:
@@ -148,8 +167,9 @@ def _summary(scores: Mapping[str, Mapping[str, Agreement]], kinds: Mapping[str, 
 def _scene_header(name: str, ds: xr.Dataset) -> list[str]:
     attrs = ds.attrs
     lines = [f"## Scene `{name}`", ""]
-    if attrs.get("scene_label"):
-        lines += [f"{attrs['scene_label']}", ""]
+    title = figures.scene_title(ds)
+    if title:
+        lines += [title, ""]
     facts = [
         ("contact", attrs.get("contact")),
         ("dof", attrs.get("dof")),
@@ -192,7 +212,26 @@ def _per_regime(by_method: Mapping[str, Agreement]) -> list[str]:
     return ["### Per-regime accuracy", ""] + _table(header, rows)
 
 
-def _deviations(by_method: Mapping[str, Agreement]) -> list[str]:
+#: Relative deviations are shown only over columns whose closed form is at
+#: least this many grid steps above zero (near zero they only measure the grid).
+REL_MIN_STEPS = 10
+
+
+def _max_rel(d, step: float | None) -> str:
+    """Largest relative deviation over the columns where it means something."""
+    cf = np.abs(d.closed_form)
+    ok = np.isfinite(d.relative) & (cf >= REL_MIN_STEPS * step if step else cf > 0)
+    return _num(float(np.max(d.relative[ok]))) if ok.any() else "n/a"
+
+
+def grid_step(ds: xr.Dataset) -> float | None:
+    """The beta step of a grid scene (None for traced scenes and point lists)."""
+    if "beta" not in ds.dims or ds.sizes["beta"] < 2:
+        return None
+    return float(np.median(np.diff(np.sort(ds["beta"].values))))
+
+
+def _deviations(by_method: Mapping[str, Agreement], step: float | None = None) -> list[str]:
     header = [
         "boundary",
         "method",
@@ -200,25 +239,25 @@ def _deviations(by_method: Mapping[str, Agreement]) -> list[str]:
         "closed form inside bracket",
         "max abs",
         "median abs",
-        "max rel",
-        "median rel",
     ]
+    if step:
+        header += ["max abs (grid steps)", "median abs (grid steps)"]
+    header += [f"max rel (closed form >= {REL_MIN_STEPS} steps)" if step else "max rel"]
     rows = []
     for m, a in by_method.items():
         for name, d in a.deviations.items():
             cons = d.n_consistent
-            rows.append(
-                [
-                    name,
-                    m,
-                    f"{d.n_compared} / {d.n_columns}",
-                    "n/a (traced)" if cons is None else f"{cons} / {d.n_columns}",
-                    _num(d.max_abs),
-                    _num(d.median_abs),
-                    _num(d.max_rel),
-                    _num(d.median_rel),
-                ]
-            )
+            row = [
+                name,
+                m,
+                f"{d.n_compared} / {d.n_columns}",
+                "n/a (traced)" if cons is None else f"{cons} / {d.n_columns}",
+                _num(d.max_abs),
+                _num(d.median_abs),
+            ]
+            if step:
+                row += [_num(d.max_abs / step, 3), _num(d.median_abs / step, 3)]
+            rows.append([*row, _max_rel(d, step)])
     if not rows:
         return []
     lines = ["### Boundary deviation (numerical - closed form)", ""]
@@ -228,7 +267,8 @@ def _deviations(by_method: Mapping[str, Agreement]) -> list[str]:
         "(continuous / stick-slip), and between the last moving beta and the first beta "
         "of the top run of no-motion points (stick-slip / no motion). Columns with an open "
         "bracket or an infinite closed form are not compared; relative = |deviation| / "
-        "|closed form|.",
+        "|closed form|, only where the closed form is clear of zero. A grid locates a "
+        "boundary to half a beta step: deviations below 0.5 steps are grid resolution.",
         "",
     ]
     lines += _table(header, rows)
@@ -303,7 +343,7 @@ def _scene_section(
         for a in by_method.values():
             lines += _confusion(a)
         lines += _per_regime(by_method)
-    lines += _deviations(by_method)
+    lines += _deviations(by_method, grid_step(ds))
     lines += _planes(by_method)
     if first.kind != "trace":
         lines += _undetermined(first)
@@ -345,10 +385,18 @@ def _scene_figures(
     stem = _safe(name)
     paths = [figures.save_regime_map(ds, out_dir / f"{stem}_map.png")]
     if by_method and any(a.deviations for a in by_method.values()):
-        title = f"{ds.attrs.get('scene_label') or name}: boundary deviation"
+        title = f"{figures.scene_title(ds)}: boundary deviation"
         paths.append(
-            figures.save_deviation(by_method, out_dir / f"{stem}_deviation.png", title=title)
+            figures.save_deviation(
+                by_method,
+                out_dir / f"{stem}_deviation.png",
+                title=title,
+                step=grid_step(ds),
+                traced=scene_kind(ds) == "trace",
+            )
         )
+    if scene_kind(ds) == "grid" and "mass" in ds.get("amplitude", xr.DataArray()).dims:
+        paths.append(figures.save_response(ds, out_dir / f"{stem}_response.png"))
     return paths
 
 

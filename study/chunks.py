@@ -30,7 +30,7 @@ from study.cost import TRACE_POINTS_PER_R, chunk_target, seconds_per_point
 from study.definition import SceneSpec, Study
 
 #: Bump when the meaning of a chunk changes, so old work folders are not reused.
-CHUNK_FORMAT = 1
+CHUNK_FORMAT = 2  # 2: design quantities (amplitude, dissipation, ...)
 
 
 @dataclass(frozen=True)

@@ -10,7 +10,7 @@ import time
 
 import numpy as np
 
-from tasks.result import FIELDS
+from tasks.result import FIELDS, field_shape
 from tasks.scene import Scene
 
 
@@ -29,7 +29,8 @@ def compute_chunk(task: dict) -> dict[str, np.ndarray]:
     -------
     dict of numpy.ndarray
         One array per field of ``tasks.result.FIELDS`` (grid: shape
-        ``(len(r), len(beta))``; points: ``(len(r),)``), plus ``seconds``,
+        ``(len(r), len(beta))``; points: ``(len(r),)``; per-mass fields with
+        a trailing axis of length dof), plus ``seconds``,
         the compute time of the chunk (a 0-d float array).
     """
     t0 = time.perf_counter()
@@ -63,7 +64,10 @@ def _classify_points(task: dict) -> dict:
     n = r.size
     gamma = task.get("gamma", np.full(n, np.nan))
     kappa = task.get("kappa", np.full(n, np.nan))
-    out = {name: np.zeros(n, dtype=dt) for name, (dt, _) in FIELDS.items()}
+    dof = int(task["scene"]["dof"])
+    out = {
+        name: np.zeros(field_shape(name, (n,), dof), dtype=dt) for name, (dt, _) in FIELDS.items()
+    }
     pairs = np.stack([gamma, kappa], axis=1)
     for g, k in np.unique(pairs, axis=0):
         sel = (np.isnan(gamma) if np.isnan(g) else gamma == g) & (

@@ -1,8 +1,11 @@
 """Assembly of the result file: one labelled xarray Dataset per scene, one netCDF4 file.
 
-Schema (README "Results: the netCDF files"): dims ``(gamma, kappa, r, beta)`` with the
-unswept ratios dropped (a point list: one dim ``point``); one variable per
-field of ``tasks.result.FIELDS``; the closed-form boundaries of
+Schema (README "Results: the netCDF files"): dims ``(gamma, kappa, beta, r)`` with the
+unswept ratios as scalar coordinates (a point list: one dim ``point``), so
+``ds.regime.plot()`` draws r along x; one variable per field of
+``tasks.result.FIELDS`` (per-mass fields with a dim ``mass`` before beta);
+coded fields are integers with CF ``flag_values`` / ``flag_meanings`` and no
+fill value (a written result is complete); the closed-form boundaries of
 ``analysis.boundaries`` for the methods "paper" and "exact" along r; CF
 attributes and provenance (study text, resolved settings, versions, history).
 A single scene is written at the root (``xr.open_dataset``), several scenes as
@@ -35,7 +38,7 @@ from study.definition import Study
 from study.store import TMP_SUFFIX, WorkDir, fsync_dir
 from study.trace import TRACE_FIELDS
 from tasks import regimes
-from tasks.result import FIELDS
+from tasks.result import COORD_ATTRS, FIELDS, MASS_FIELDS, field_attrs
 
 #: Closed-form methods stored for every scene (``analysis.boundaries``).
 BOUNDARY_METHODS = ("paper", "exact")
@@ -51,16 +54,6 @@ NC_CHUNK_ELEMENTS = 1 << 16
 NC_CACHE_BYTES = 2 << 20
 NC_CACHE_SLOTS = 1009
 
-COORD_ATTRS = {
-    "r": {"long_name": "frequency ratio r = omega sqrt(m_1/k_1) (Eq. 7)", "units": "1"},
-    "beta": {"long_name": "friction ratio beta = F/(k_1 Y) (Eq. 8)", "units": "1"},
-    "gamma": {"long_name": "mass ratio m_i/m_1 of every mass i = 2..N (Eq. 66)", "units": "1"},
-    "kappa": {
-        "long_name": "stiffness ratio k_i/k_1 of every spring i = 2..N (Eq. 67)",
-        "units": "1",
-    },
-    "point": {"long_name": "index of the point in the study's point list", "units": "1"},
-}
 BOUNDARY_ATTRS = {
     "beta_continuous": "largest beta of continuous motion (continuous / stick-slip boundary)",
     "beta_motion": "smallest beta of no motion (stick-slip / no-motion boundary)",
@@ -180,7 +173,8 @@ def _boundary_vars(plan: ScenePlan, axes: dict[str, np.ndarray]) -> dict[str, xr
 
 # --------------------------------------------------------------------------- skeleton
 def _data_layout(plan: ScenePlan) -> tuple[tuple[str, ...], tuple[int, ...], dict[str, str]]:
-    """Dims, shape and {variable: dtype} of the per-point (or per-r) result variables."""
+    """Dims, shape and {variable: dtype} of the per-point (or per-r) result variables
+    (per-mass fields get the dim ``mass`` on top: :func:`_var_layout`)."""
     spec = plan.spec
     if plan.kind == "points":
         return ("point",), (len(spec.points),), {k: dt for k, (dt, _) in FIELDS.items()}
@@ -191,13 +185,23 @@ def _data_layout(plan: ScenePlan) -> tuple[tuple[str, ...], tuple[int, ...], dic
             (*spec.sweep_shape, len(spec.r)),
             {name: dt for name, (dt, _) in TRACE_FIELDS.items()},
         )
-    dims = (*sweeps, "r", "beta")
-    shape = (*spec.sweep_shape, len(spec.r), len(spec.beta))
+    dims = (*sweeps, "beta", "r")
+    shape = (*spec.sweep_shape, len(spec.beta), len(spec.r))
     return dims, shape, {k: dt for k, (dt, _) in FIELDS.items()}
 
 
-def _nc_chunksizes(shape: tuple[int, ...]) -> tuple[int, ...]:
-    """netCDF chunks of at most NC_CHUNK_ELEMENTS: whole rows of beta (runs of points).
+def _var_layout(
+    name: str, dims: tuple[str, ...], shape: tuple[int, ...], dof: int
+) -> tuple[tuple[str, ...], tuple[int, ...]]:
+    """Dims and shape of one variable: per-mass fields have ``mass`` before the plane."""
+    if name not in MASS_FIELDS:
+        return dims, shape
+    k = len(dims) - (1 if dims[-1] == "point" else 2)
+    return (*dims[:k], "mass", *dims[k:]), (*shape[:k], dof, *shape[k:])
+
+
+def _nc_chunksizes(shape: tuple[int, ...], grid: bool = False) -> tuple[int, ...]:
+    """netCDF chunks of at most NC_CHUNK_ELEMENTS: whole columns of beta (runs of r).
 
     The work chunks are written row band after row band (r, then beta), so a
     netCDF chunk is complete soon after it is first touched and then leaves
@@ -205,20 +209,59 @@ def _nc_chunksizes(shape: tuple[int, ...]) -> tuple[int, ...]:
     """
     if len(shape) == 1:
         return (max(1, min(shape[0], NC_CHUNK_ELEMENTS)),)
+    if grid:  # (..., beta, r)
+        nb = max(1, min(shape[-2], NC_CHUNK_ELEMENTS))
+        nr = max(1, min(shape[-1], NC_CHUNK_ELEMENTS // nb))
+        return (*([1] * (len(shape) - 2)), nb, nr)
     cols = max(1, min(shape[-1], NC_CHUNK_ELEMENTS))
     rows = max(1, min(shape[-2], NC_CHUNK_ELEMENTS // cols))
     return (*([1] * (len(shape) - 2)), rows, cols)
 
 
-def _fill_chunks_shape(shape: tuple[int, ...]) -> tuple[int, ...]:
+def _fill_chunks_shape(shape: tuple[int, ...], grid: bool = False) -> tuple[int, ...]:
     """Blocks of at most ~_BLOCK elements along the last two dims (the rest one by one),
     made of whole netCDF chunks."""
-    nc = _nc_chunksizes(shape)
+    nc = _nc_chunksizes(shape, grid)
     if len(shape) == 1:
         return (max(nc[0], _BLOCK // nc[0] * nc[0]),)
+    if grid:
+        cols = max(1, min(shape[-1], _BLOCK // max(1, shape[-2])))
+        cols = max(nc[-1], cols // nc[-1] * nc[-1])
+        return (*([1] * (len(shape) - 2)), shape[-2], cols)
     rows = max(1, min(shape[-2], _BLOCK // max(1, shape[-1])))
     rows = max(nc[-2], rows // nc[-2] * nc[-2])
     return (*([1] * (len(shape) - 2)), rows, shape[-1])
+
+
+#: CF flags of the coded trace variables.
+TRACE_FLAGS = {
+    "trace_monotone": {
+        "flag_values": np.array([0, 1], dtype=np.int8),
+        "flag_meanings": "dense_scan bisection",
+    }
+}
+
+
+def _attrs(name: str) -> dict[str, object]:
+    if name in FIELDS:
+        return field_attrs(name)
+    attrs: dict[str, object] = {"long_name": TRACE_FIELDS[name][1]}
+    attrs.update(TRACE_FLAGS.get(name, {"units": "1"}))
+    return attrs
+
+
+def scalar_ratios(spec) -> dict[str, float]:
+    """gamma and kappa of a scene where they are one number and not swept (dof >= 2)."""
+    out = {}
+    if spec.dof < 2:
+        return out
+    for name in ("gamma", "kappa"):
+        if name in spec.sweeps:
+            continue
+        values = set(np.atleast_1d(np.asarray(getattr(spec, name), dtype=float)).tolist())
+        if len(values) == 1:
+            out[name] = values.pop()
+    return out
 
 
 def scene_dataset(plan: ScenePlan, study: Study) -> tuple[xr.Dataset, dict[str, dict]]:
@@ -226,6 +269,7 @@ def scene_dataset(plan: ScenePlan, study: Study) -> tuple[xr.Dataset, dict[str, 
     spec = plan.spec
     axes = plan.axes()
     dims, shape, variables = _data_layout(plan)
+    grid = plan.kind == "grid"
     coords: dict[str, xr.Variable] = {}
     if plan.kind == "points":
         coords["point"] = xr.Variable("point", np.arange(len(spec.points)), COORD_ATTRS["point"])
@@ -233,28 +277,32 @@ def scene_dataset(plan: ScenePlan, study: Study) -> tuple[xr.Dataset, dict[str, 
             if name in axes:
                 coords[name] = xr.Variable("point", axes[name], COORD_ATTRS[name])
     else:
-        for name in (*spec.sweeps, "r", "beta"):
+        for name in (*spec.sweeps, "beta", "r"):
             if name == "beta" and plan.kind == "trace":
                 continue
             coords[name] = xr.Variable(name, axes[name], COORD_ATTRS[name])
-    chunks = _fill_chunks_shape(shape)
+    for name, value in scalar_ratios(spec).items():
+        if name not in coords:
+            coords[name] = xr.Variable((), value, COORD_ATTRS[name])
+    if any(name in MASS_FIELDS for name in variables):
+        coords["mass"] = xr.Variable(
+            "mass", np.arange(1, spec.dof + 1, dtype=np.int32), COORD_ATTRS["mass"]
+        )
     data_vars: dict[str, xr.Variable] = {}
     encoding: dict[str, dict] = {name: {"_FillValue": None} for name in coords}
     for name, dt in variables.items():
-        attrs = {"units": "1"}
-        attrs["long_name"] = FIELDS[name][1] if name in FIELDS else TRACE_FIELDS[name][1]
+        vdims, vshape = _var_layout(name, dims, shape, spec.dof)
         enc: dict[str, object] = {
             "zlib": True,
             "complevel": 4,
-            "chunksizes": _nc_chunksizes(shape),
+            "chunksizes": _nc_chunksizes(vshape, grid),
         }
-        if name == "regime":
-            attrs.update(regimes.cf_flag_attributes())
-            enc.update(_FillValue=regimes.NOT_COMPUTED, dtype="int8")
-        elif not dt.startswith("float"):
+        if not dt.startswith("float"):  # codes and counts: complete, no fill value
             enc["_FillValue"] = None
-        lazy = da.full(shape, _fill(dt), dtype=dt, chunks=chunks)
-        data_vars[name] = xr.Variable(dims, lazy, attrs)
+        if name == "regime":
+            enc["dtype"] = "int8"
+        lazy = da.full(vshape, _fill(dt), dtype=dt, chunks=_fill_chunks_shape(vshape, grid))
+        data_vars[name] = xr.Variable(vdims, lazy, _attrs(name))
         encoding[name] = enc
     bounds = _boundary_vars(plan, axes)
     data_vars.update(bounds)
@@ -274,6 +322,39 @@ def scene_dataset(plan: ScenePlan, study: Study) -> tuple[xr.Dataset, dict[str, 
     if plan.kind == "trace":
         attrs["beta_range"] = json.dumps([float(axes["beta"].min()), float(axes["beta"].max())])
     return xr.Dataset(data_vars, coords, attrs), encoding
+
+
+def chunk_writes(plan: ScenePlan, chunk, arrays: dict[str, np.ndarray]):
+    """``(variable, index, values)`` that put one chunk's arrays into the scene's variables.
+
+    The work chunks are ``(r, beta)`` blocks (per-mass fields ``(r, beta, mass)``);
+    the stored layout is ``(..., [mass,] beta, r)``.
+    """
+    _, _, variables = _data_layout(plan)
+    for name in variables:
+        values = np.asarray(arrays[name])
+        if plan.kind == "grid":
+            index = (*chunk.sweep, slice(*chunk.cols), slice(*chunk.rows))
+            values = values.T  # (r, beta[, mass]) -> ([mass,] beta, r)
+        else:
+            index = (*chunk.sweep, slice(*chunk.rows))
+            values = values.T  # (point[, mass]) -> ([mass,] point); 1-D unchanged
+        if name in MASS_FIELDS:
+            index = (*index[: len(chunk.sweep)], slice(None), *index[len(chunk.sweep) :])
+        yield name, index, values
+
+
+def root_attrs(gattrs: dict[str, str], names: list[str]) -> dict[str, str]:
+    """Global attributes of a multi-scene file: what its groups hold and how to open them."""
+    listing = " ".join(names)
+    return {
+        **gattrs,
+        "groups": listing,
+        "how_to_open": (
+            f"one group per scene ({listing}): xarray.open_datatree(path), or "
+            f"xarray.open_dataset(path, group=NAME); the root holds no variables"
+        ),
+    }
 
 
 # --------------------------------------------------------------------------- writing
@@ -302,7 +383,8 @@ def write_result(
                 ds.to_netcdf(tmp, engine="netcdf4", format="NETCDF4", encoding=enc)
             else:
                 tree = xr.DataTree.from_dict(
-                    {"/": xr.Dataset(attrs=gattrs)} | {f"/{n}": ds for n, (ds, _) in built.items()}
+                    {"/": xr.Dataset(attrs=root_attrs(gattrs, list(built)))}
+                    | {f"/{n}": ds for n, (ds, _) in built.items()}
                 )
                 tree.to_netcdf(
                     tmp,
@@ -327,16 +409,38 @@ def _fill_chunks(path: Path, plans: list[ScenePlan], work: WorkDir, grouped: boo
         nc.set_auto_maskandscale(False)
         for plan in plans:
             group = nc.groups[plan.spec.name] if grouped else nc
-            _, _, variables = _data_layout(plan)
             for chunk in plan.chunks():
                 arrays = work.load(plan.spec.name, chunk.key)
-                if plan.kind == "grid":
-                    index = (*chunk.sweep, slice(*chunk.rows), slice(*chunk.cols))
-                else:
-                    index = (*chunk.sweep, slice(*chunk.rows))
-                for name in variables:
+                for name, index, values in chunk_writes(plan, chunk, arrays):
                     var = group.variables[name]
-                    var[index] = np.asarray(arrays[name]).astype(var.dtype, copy=False)
+                    var[index] = values.astype(var.dtype, copy=False)
+
+
+def result_tree(study: Study, plans: list[ScenePlan], work) -> xr.DataTree:
+    """The result in memory, laid out as the file :func:`write_result` writes.
+
+    ``work`` holds every chunk (``load(scene, key)``); a single scene is the
+    root of the tree, several scenes are its children.
+    """
+    built = {}
+    for plan in plans:
+        ds, _ = scene_dataset(plan, study)
+        _, _, variables = _data_layout(plan)
+        filled = {name: np.array(ds[name].data.compute()) for name in variables}  # own memory
+        for chunk in plan.chunks():
+            arrays = work.load(plan.spec.name, chunk.key)
+            for name, index, values in chunk_writes(plan, chunk, arrays):
+                filled[name][index] = values
+        ds = ds.assign({name: ds[name].copy(data=filled[name]) for name in variables})
+        built[plan.spec.name] = ds
+    gattrs = global_attrs(study)
+    if len(built) == 1:
+        ((ds,),) = [tuple(built.values())]
+        return xr.DataTree(ds.assign_attrs({**gattrs, **ds.attrs}))
+    return xr.DataTree.from_dict(
+        {"/": xr.Dataset(attrs=root_attrs(gattrs, list(built)))}
+        | {f"/{n}": ds for n, ds in built.items()}
+    )
 
 
 def open_result(path: str | os.PathLike) -> xr.Dataset | xr.DataTree:

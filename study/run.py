@@ -198,7 +198,7 @@ def _check_runnable(study: Study, output: Path) -> None:
 
 def run_study(
     study: Study,
-    output: str | os.PathLike,
+    output: str | os.PathLike | None = None,
     *,
     client=None,
     scheduler: str | None = None,
@@ -215,8 +215,11 @@ def run_study(
     ----------
     study : Study
         A validated study.
-    output : path
+    output : path, optional
         The netCDF file to write; chunks are kept in ``output + ".work"``.
+        Without it nothing is written: the chunks are kept in memory and the
+        labelled result is returned (an ``xarray.DataTree`` laid out as the
+        file would be: one scene at the root, several as children).
     client : distributed.Client, optional
         Use this client (it is not closed). Otherwise connect to ``scheduler``
         (an address) or ``scheduler_file``, or start a LocalCluster with
@@ -234,13 +237,24 @@ def run_study(
         no result file.
     StudyFailed
         A chunk failed on every retry, or the scheduler cancelled it.
+
+    Returns
+    -------
+    RunSummary or xarray.DataTree
+        What the run did (with ``output``), or the result (without).
     """
     stream = stream if stream is not None else sys.stderr
     t0 = time.perf_counter()
-    output = Path(output)
-    _check_runnable(study, output)
+    in_memory = output is None
     plans = plan(study)
-    work = WorkDir(output)
+    if in_memory:
+        from study.memory import MemoryWork
+
+        work = MemoryWork()
+    else:
+        output = Path(output)
+        _check_runnable(study, output)
+        work = WorkDir(output)
     if not work.lock():
         raise StudyError(
             "-o", f"another run is writing {output} (its work folder {work.path} is locked)"
@@ -250,7 +264,7 @@ def run_study(
     n_chunks = 0
     try:
         stale = work.clean()
-        for p in temporary_outputs(output):
+        for p in [] if in_memory else temporary_outputs(output):
             p.unlink(missing_ok=True)
             stale += 1
         reused = reused_points = 0
@@ -278,10 +292,13 @@ def run_study(
                 compute_seconds = _compute(c, plans, work, bar, retries, saved)
                 compute_wall = time.perf_counter() - t1
             bar.close()
-        from study.netcdf import write_result
+        from study.netcdf import result_tree, write_result
 
         t2 = time.perf_counter()
-        write_result(study, plans, work, output, command)
+        if in_memory:
+            tree = result_tree(study, plans, work)
+        else:
+            write_result(study, plans, work, output, command)
         write_seconds = time.perf_counter() - t2
         finished = True
     except KeyboardInterrupt:
@@ -296,6 +313,9 @@ def run_study(
             work.unlock()
     wall = time.perf_counter() - t0
     computed = saved[0] - reused  # chunks whose results arrived and were saved by this run
+    if in_memory:
+        print(f"study: computed {n_points:,} points in memory in {wall:.1f} s", file=stream)
+        return tree
     print(
         f"study: wrote {output} ({n_points:,} points; {computed:,} chunks computed, "
         f"{reused:,} reused) in {wall:.1f} s",

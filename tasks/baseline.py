@@ -360,13 +360,16 @@ def classify_paper_method(
     ``converged`` is False and ``period`` 0 everywhere (the method has no
     steady-state test); ``cycles`` is the number integrated; ``initial_condition``
     is ``rest``; ``stops_per_cycle``, ``stick_fraction`` and ``slip_amplitude``
-    describe the last cycle. ``kwargs`` go to :func:`paper_method`.
+    describe the last cycle; the design quantities are NaN. ``kwargs`` go to
+    :func:`paper_method`.
     """
     r_arr, beta_arr = np.broadcast_arrays(
         np.asarray(r, dtype=np.float64), np.asarray(beta, dtype=np.float64)
     )
-    res = ClassifyResult.empty(r_arr.shape)
+    res = ClassifyResult.empty(r_arr.shape, scene.dof)
     res.initial_condition[...] = regimes.IC_REST
+    for name in ("amplitude", "amplitude_relative", "contact_force_amplitude", "dissipation"):
+        getattr(res, name)[...] = np.nan  # not measured by the paper's method
     for idx in np.ndindex(r_arr.shape):
         code, info = paper_method(scene, float(r_arr[idx]), float(beta_arr[idx]), **kwargs)
         res.regime[idx] = code

@@ -89,10 +89,13 @@ def classify(
     shape = r_arr.shape
     flat_r = np.ascontiguousarray(r_arr.ravel())
     flat_beta = np.ascontiguousarray(beta_arr.ravel())
-    out, _ = kernel.run_points(
-        flat_r, flat_beta, scene_modes_cached(scene).kernel_args(), settings_args(resolved)
+    scene_args = scene_modes_cached(scene).kernel_args()
+    args = settings_args(resolved)
+    out, final = kernel.run_points(flat_r, flat_beta, scene_args, args)
+    design, _ = kernel.orbit_designs(
+        flat_r, flat_beta, scene_args, args, out, final, kernel.DESIGN_SAMPLES
     )
-    return result_from_kernel(out, shape)
+    return result_from_kernel(out, shape, design, scene.contact == "base")
 
 
 #: Column of :func:`tasks.kernel.run_points`'s output holding each result field.
@@ -108,11 +111,39 @@ KERNEL_COLUMNS = {
 }
 
 
-def result_from_kernel(out: np.ndarray, shape: tuple[int, ...]) -> ClassifyResult:
-    """A :class:`ClassifyResult` of ``shape`` from the kernel's ``(n_points, N_OUT)`` output."""
-    return ClassifyResult(
-        **{
-            name: out[:, col].astype(FIELDS[name][0]).reshape(shape)
-            for name, col in KERNEL_COLUMNS.items()
-        }
-    )
+def result_from_kernel(
+    out: np.ndarray,
+    shape: tuple[int, ...],
+    design: np.ndarray | None = None,
+    base: bool = False,
+) -> ClassifyResult:
+    """A :class:`ClassifyResult` of ``shape`` from the kernel's output.
+
+    ``out`` is :func:`tasks.kernel.run_points`' ``(n_points, N_OUT)`` array,
+    ``design`` :func:`tasks.kernel.orbit_designs`' ``(n_points, 2 N + 2)``
+    (NaN design quantities if omitted); ``base`` says the kernel's coordinates
+    are relative to the base (base-fixed wall, docs/theory.md 2).
+    """
+    fields = {
+        name: out[:, col].astype(FIELDS[name][0]).reshape(shape)
+        for name, col in KERNEL_COLUMNS.items()
+    }
+    fields.update(design_fields(design, out.shape[0], shape, base))
+    return ClassifyResult(**fields)
+
+
+def design_fields(
+    design: np.ndarray | None, n_points: int, shape: tuple[int, ...], base: bool
+) -> dict[str, np.ndarray]:
+    """The design quantities of :data:`tasks.result.FIELDS` from the kernel's columns."""
+    if design is None:
+        design = np.full((n_points, 4), np.nan)  # dof unknown: one mass of NaN
+    n = (design.shape[1] - 2) // 2
+    own, other = design[:, :n], design[:, n : 2 * n]
+    absolute, relative = (other, own) if base else (own, other)
+    return {
+        "amplitude": absolute.reshape((*shape, n)),
+        "amplitude_relative": relative.reshape((*shape, n)),
+        "contact_force_amplitude": design[:, 2 * n + kernel.DESIGN_FORCE].reshape(shape),
+        "dissipation": design[:, 2 * n + kernel.DESIGN_DISSIPATION].reshape(shape),
+    }

@@ -6,10 +6,12 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
+from tasks.regimes import INITIAL_CONDITIONS, cf_flag_attributes
+
 #: Output fields of :func:`tasks.classify`, their dtypes and meanings (one home,
 #: reused by the study layer for netCDF variables).
 FIELDS: dict[str, tuple[str, str]] = {
-    "regime": ("int8", "steady-state motion regime code (tasks.regimes)"),
+    "regime": ("int8", "steady-state motion regime (codes: tasks.regimes)"),
     "converged": ("bool", "a periodic steady state was found and verified"),
     "cycles": ("int32", "excitation cycles simulated (shooting cycles included)"),
     "stops_per_cycle": (
@@ -20,7 +22,96 @@ FIELDS: dict[str, tuple[str, str]] = {
     "stick_fraction": ("float64", "fraction of the period the contact is stuck in steady state"),
     "period": ("int8", "period of the steady state in excitation cycles (1 or 2; 0 if none)"),
     "initial_condition": ("int8", "initial condition used (tasks.regimes.INITIAL_CONDITIONS)"),
+    "amplitude": (
+        "float64",
+        "displacement amplitude of each mass (half peak-to-peak of x_i / Y over the "
+        "steady-state period; absolute displacement)",
+    ),
+    "amplitude_relative": (
+        "float64",
+        "displacement amplitude of each mass relative to the base (half peak-to-peak of "
+        "(x_i - y) / Y over the steady-state period)",
+    ),
+    "contact_force_amplitude": (
+        "float64",
+        "largest friction force over the steady-state period (/ (k_1 Y); beta whenever "
+        "the contact slides)",
+    ),
+    "dissipation": (
+        "float64",
+        "energy dissipated by the contact per excitation cycle (/ (k_1 Y^2): beta times "
+        "the slip distance per cycle, docs/theory.md 2)",
+    ),
 }
+
+#: CF attributes of the coordinates of a result (stored or in memory).
+COORD_ATTRS: dict[str, dict[str, str]] = {
+    "r": {
+        "long_name": "frequency ratio r_1",
+        "comment": "r_1 = omega sqrt(m_1/k_1) (Eq. 7)",
+        "units": "1",
+    },
+    "beta": {
+        "long_name": "friction ratio beta",
+        "comment": "beta = F/(k_1 Y) (Eq. 8)",
+        "units": "1",
+    },
+    "gamma": {
+        "long_name": "mass ratio gamma",
+        "comment": "gamma_i = m_i/m_1 of every mass i = 2..N (Eq. 66)",
+        "units": "1",
+    },
+    "kappa": {
+        "long_name": "stiffness ratio kappa",
+        "comment": "kappa_i = k_i/k_1 of every spring i = 2..N (Eq. 67)",
+        "units": "1",
+    },
+    "mass": {"long_name": "index i of the mass m_i (1 = the mass on spring k_1)", "units": "1"},
+    "point": {"long_name": "index of the point in the study's point list", "units": "1"},
+}
+
+#: Fields with one value per mass: a trailing dimension ``mass`` (1..N) in
+#: :class:`ClassifyResult`, the dimension ``mass`` in stored results.
+MASS_FIELDS: tuple[str, ...] = ("amplitude", "amplitude_relative")
+
+#: CF flag attributes of the coded fields (``flag_values`` / ``flag_meanings``).
+FLAGS: dict[str, dict[str, object]] = {
+    "initial_condition": {
+        "flag_values": np.array(sorted(INITIAL_CONDITIONS), dtype=np.int8),
+        "flag_meanings": " ".join(INITIAL_CONDITIONS[c] for c in sorted(INITIAL_CONDITIONS)),
+    },
+    "period": {
+        "flag_values": np.array([0, 1, 2], dtype=np.int8),
+        "flag_meanings": "no_steady_state one_cycle two_cycles",
+    },
+    "converged": {
+        "flag_values": np.array([0, 1], dtype=np.int8),
+        "flag_meanings": "false true",
+    },
+}
+
+
+def field_attrs(name: str) -> dict[str, object]:
+    """CF attributes of a result field: ``long_name`` (and the full meaning as
+    ``comment``), ``units`` and, for coded fields, ``flag_values`` /
+    ``flag_meanings`` (``regime``: :mod:`tasks.regimes`)."""
+    meaning = FIELDS[name][1]
+    short = meaning.split(" (")[0]  # the name; the details go to the comment
+    attrs: dict[str, object] = {"long_name": short}
+    if short != meaning:
+        attrs["comment"] = meaning
+    if name == "regime":
+        attrs.update(cf_flag_attributes())
+    elif name in FLAGS:
+        attrs.update(FLAGS[name])
+    else:
+        attrs["units"] = "1"
+    return attrs
+
+
+def field_shape(name: str, shape: tuple[int, ...], dof: int) -> tuple[int, ...]:
+    """Shape of a field for points of ``shape`` in a chain of ``dof`` masses."""
+    return (*shape, dof) if name in MASS_FIELDS else shape
 
 
 @dataclass
@@ -35,17 +126,92 @@ class ClassifyResult:
     stick_fraction: np.ndarray
     period: np.ndarray
     initial_condition: np.ndarray
+    amplitude: np.ndarray
+    amplitude_relative: np.ndarray
+    contact_force_amplitude: np.ndarray
+    dissipation: np.ndarray
 
     @classmethod
-    def empty(cls, shape: tuple[int, ...]) -> ClassifyResult:
-        return cls(**{name: np.zeros(shape, dtype=dt) for name, (dt, _) in FIELDS.items()})
+    def empty(cls, shape: tuple[int, ...], dof: int = 1) -> ClassifyResult:
+        return cls(
+            **{
+                name: np.zeros(field_shape(name, shape, dof), dtype=dt)
+                for name, (dt, _) in FIELDS.items()
+            }
+        )
 
     @property
     def shape(self) -> tuple[int, ...]:
         return self.regime.shape
 
+    @property
+    def dof(self) -> int:
+        """Number of masses (length of the trailing axis of the per-mass fields)."""
+        return self.amplitude.shape[-1]
+
     def as_dict(self) -> dict[str, np.ndarray]:
         return {f.name: getattr(self, f.name) for f in fields(self)}
 
     def reshape(self, shape: tuple[int, ...]) -> ClassifyResult:
-        return ClassifyResult(**{k: v.reshape(shape) for k, v in self.as_dict().items()})
+        return ClassifyResult(
+            **{k: v.reshape(field_shape(k, shape, self.dof)) for k, v in self.as_dict().items()}
+        )
+
+    def to_dataset(self, r: np.ndarray, beta: np.ndarray, scene=None):
+        """The result as an ``xarray.Dataset`` labelled by ``beta`` and ``r``.
+
+        Parameters
+        ----------
+        r, beta : array_like
+            The axes the result was computed on: 1-D axes with the result of
+            shape ``(len(r), len(beta))`` (``np.meshgrid(r, beta, indexing="ij")``),
+            or the 2-D arrays of that meshgrid.
+        scene : tasks.Scene, optional
+            Adds its gamma and kappa (scalar coordinates) and its contact, dof
+            and contact mass (attributes).
+
+        Returns
+        -------
+        xarray.Dataset
+            Dims ``(beta, r)`` (``ds.regime.plot()`` draws r along x), per-mass
+            fields ``(mass, beta, r)``; the same names and attributes as a
+            stored result (README "Results").
+        """
+        import xarray as xr  # lazy: tasks stays importable without xarray
+
+        r = np.asarray(r, dtype=float)
+        beta = np.asarray(beta, dtype=float)
+        if r.ndim == 2:
+            r = r[:, 0]
+        if beta.ndim == 2:
+            beta = beta[0, :]
+        if self.shape != (r.size, beta.size):
+            raise ValueError(
+                f"r, beta: the result has shape {self.shape}, expected (len(r), len(beta)) = "
+                f"({r.size}, {beta.size})"
+            )
+        data = {}
+        for name, value in self.as_dict().items():
+            if name in MASS_FIELDS:
+                data[name] = (("mass", "beta", "r"), np.moveaxis(value, (0, 1, 2), (2, 1, 0)))
+            else:
+                data[name] = (("beta", "r"), value.T)
+            data[name] = xr.Variable(*data[name], attrs=field_attrs(name))
+        coords = {
+            "beta": ("beta", beta, COORD_ATTRS["beta"]),
+            "r": ("r", r, COORD_ATTRS["r"]),
+            "mass": ("mass", np.arange(1, self.dof + 1, dtype=np.int32), COORD_ATTRS["mass"]),
+        }
+        attrs = {}
+        if scene is not None:
+            attrs = {
+                "contact": scene.contact,
+                "dof": scene.dof,
+                "contact_mass": scene.contact_mass,
+                "scene_label": scene.label,
+            }
+            for name in ("gamma", "kappa"):
+                value = getattr(scene, name)
+                if scene.dof > 1 and len(set(np.atleast_1d(value))) == 1:
+                    coords[name] = ((), float(np.atleast_1d(value)[0]), COORD_ATTRS[name])
+        return xr.Dataset(data, coords, attrs)

@@ -134,8 +134,10 @@ def trajectory(
     theta = 0.0
     ctx, work = kernel._context(r, beta, scene_args, args)[:2]
     if isinstance(start, str) and start == "steady":
-        out, final = kernel.run_points(np.array([r]), np.array([beta]), scene_args, args)
-        result = result_from_kernel(out, ())
+        rb = (np.array([r]), np.array([beta]))
+        out, final = kernel.run_points(*rb, scene_args, args)
+        design, _ = kernel.orbit_designs(*rb, scene_args, args, out, final, kernel.DESIGN_SAMPLES)
+        result = result_from_kernel(out, (), design, scene.contact == "base")
         X0 = final[0, : 2 * n].copy()
         mode0 = int(final[0, 2 * n])
         theta = float(final[0, 2 * n + 1])

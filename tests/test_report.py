@@ -209,9 +209,10 @@ def test_sweep_report_numbers(sweep_file, tmp_path):
     assert "| paper | stick slip | 85.71 % (6/7) | 100.00 % (6/6) |" in text
     assert "| paper | continuous | 100.00 % (10/10) | 90.91 % (10/11) |" in text
     # boundary deviation by hand: continuous |dev| 0 0.4 0 | 0 0.2 0.2 (bc 0.6);
-    # motion |dev| 0 0 (open) | 0 0 0.2 (bm 1)
-    assert "| continuous | paper | 6 / 6 | 5 / 6 | 0.4 | 0.1 | 0.6667 | 0.1667 |" in text
-    assert "| motion | paper | 5 / 6 | 6 / 6 | 0.2 | 0 | 0.2 | 0 |" in text
+    # motion |dev| 0 0 (open) | 0 0 0.2 (bm 1); in beta steps of 0.4; relative deviations
+    # only where the closed form is 10 steps (4.0) clear of zero: nowhere on this grid
+    assert "| continuous | paper | 6 / 6 | 5 / 6 | 0.4 | 0.1 | 1 | 0.25 | n/a |" in text
+    assert "| motion | paper | 5 / 6 | 6 / 6 | 0.2 | 0 | 0.5 | 0 | n/a |" in text
     # sweep planes
     assert "| 0.5 | 12 | 0 | 0 | 91.67 % (11/12) | 83.33 % (10/12) |" in text
     assert "| 2 | 12 | 1 | 1 | 100.00 % (10/10) | 100.00 % (10/10) |" in text
@@ -250,8 +251,8 @@ def test_trace_report(tmp_path):
     text = write_report(path, tmp_path / "t").read_text()
     assert "| `traced` | trace | 3 r values |" in text
     # continuous, paper: 0.5 - 0.4, 0.8 - 1.0 (inf not compared)
-    assert "| continuous | paper | 2 / 3 | n/a (traced) | 0.2 | 0.15 | 0.25 | 0.225 |" in text
-    assert "| motion | exact | 2 / 3 | n/a (traced) | 0.5 | 0.25 | 0.2 | 0.1 |" in text
+    assert "| continuous | paper | 2 / 3 | n/a (traced) | 0.2 | 0.15 | 0.25 |" in text
+    assert "| motion | exact | 2 / 3 | n/a (traced) | 0.5 | 0.25 | 0.2 |" in text
     _assert_png(tmp_path / "t" / "traced_map.png")
 
 
