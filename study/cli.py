@@ -1,4 +1,4 @@
-"""Command line: ``study run | plan | report | bench`` (also ``python -m study``).
+"""Command line: ``study run | plan | report | bench | examples`` (also ``python -m study``).
 
 Exit codes: 0 success, 1 a chunk failed, 2 bad input (one line on stderr,
 nothing written), 130 interrupted by Ctrl-C (SIGINT) and 143 stopped by SIGTERM
@@ -49,7 +49,12 @@ def _positive_int(text: str) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from frictionregimes import __version__
+
     parser = _Parser(prog="study", description=__doc__.splitlines()[0])
+    parser.add_argument(
+        "--version", action="version", version=f"study (frictionregimes) {__version__}"
+    )
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
     run = sub.add_parser("run", help="compute a study and write one netCDF file")
@@ -67,6 +72,9 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--fidelity", help="override the study's fidelity preset")
     run.add_argument("--retries", type=int, default=3, help="retries of a failing task")
     run.add_argument("--quiet", action="store_true", help="no progress display")
+    run.add_argument(
+        "--overwrite", action="store_true", help="compute again even if the output is complete"
+    )
 
     pl = sub.add_parser("plan", help="points, tasks and estimated time, without running")
     pl.add_argument("study", type=Path)
@@ -89,6 +97,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     bench.add_argument("-o", "--output", type=Path, required=True, metavar="DIR")
     bench.add_argument("--quick", action="store_true", help="a smaller point set (~15 s)")
+
+    ex = sub.add_parser(
+        "examples", help="list the example studies (the paper's figures, HPC recipe) or write one"
+    )
+    ex.add_argument("name", nargs="?", help="an example to write out (e.g. quickstart)")
+    ex.add_argument("-o", "--output", type=Path, help="file to write (default: stdout)")
     return parser
 
 
@@ -116,6 +130,7 @@ def cmd_run(args) -> int:
         retries=args.retries,
         progress=not args.quiet,
         command=command,
+        overwrite=args.overwrite,
     )
     return 0
 
@@ -180,11 +195,27 @@ def cmd_bench(args) -> int:
     return 0
 
 
+def cmd_examples(args) -> int:
+    from study.examples import list_examples, write_example
+
+    if args.name is None:
+        if args.output is not None:
+            raise StudyError("-o", "name the example to write: study examples NAME -o FILE")
+        print(list_examples())
+    else:
+        write_example(args.name, args.output)
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    handler = {"run": cmd_run, "plan": cmd_plan, "report": cmd_report, "bench": cmd_bench}[
-        args.command
-    ]
+    handler = {
+        "run": cmd_run,
+        "plan": cmd_plan,
+        "report": cmd_report,
+        "bench": cmd_bench,
+        "examples": cmd_examples,
+    }[args.command]
     previous = None
     if args.command == "run":
         previous = signal.signal(signal.SIGTERM, _Terminated())

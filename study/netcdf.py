@@ -91,8 +91,13 @@ def _fill(dtype: str) -> object:
 
 def versions() -> dict[str, str]:
     """Versions of Python and of the packages that made the result."""
+    from frictionregimes import __version__
+
     out = {"python": platform.python_version()}
     for pkg in PACKAGES:
+        if pkg == "frictionregimes":  # the release and, where known, the git commit
+            out[pkg] = __version__
+            continue
         try:
             out[pkg] = metadata.version(pkg)
         except metadata.PackageNotFoundError:
