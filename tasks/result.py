@@ -9,7 +9,7 @@ import numpy as np
 #: Output fields of :func:`tasks.classify`, their dtypes and meanings (one home,
 #: reused by the study layer for netCDF variables).
 FIELDS: dict[str, tuple[str, str]] = {
-    "regime": ("int8", "steady-state motion regime code (tasks.regimes)"),
+    "regime": ("int8", "steady-state motion regime code (docs/regimes.md)"),
     "converged": ("bool", "a periodic steady state was found and verified"),
     "cycles": ("int32", "excitation cycles simulated (shooting cycles included)"),
     "stops_per_cycle": (
