@@ -201,7 +201,10 @@ def cmd_examples(args) -> int:
     if args.name is None:
         if args.output is not None:
             raise StudyError("-o", "name the example to write: study examples NAME -o FILE")
-        print(list_examples())
+        try:
+            print(list_examples())
+        except BrokenPipeError:  # study examples | head
+            sys.stdout = None  # nothing more to flush into the closed pipe
     else:
         write_example(args.name, args.output)
     return 0

@@ -19,8 +19,8 @@ def compile_once(stream: TextIO) -> float:
     if numba_cache.is_compiled():
         return 0.0
     print(
-        "study: compiling the simulator once, about 30 s "
-        f"(cached in {numba_cache.cache_dir()} for later runs) ...",
+        "study: compiling the simulator once, about 30 s (minutes on a busy machine; "
+        f"cached in {numba_cache.cache_dir()} for later runs) ...",
         file=stream,
         flush=True,
     )
