@@ -142,6 +142,10 @@ def cmd_plan(args) -> int:
 
     study = _load(args)
     workers = args.workers or default_workers()
+    if args.calibrate:
+        from study.firstrun import compile_once
+
+        compile_once(sys.stderr)  # announced, and kept out of the measured times
     print(f"study {study.name}: fidelity {study.fidelity}, {study.n_points:,} points")
     print(
         f"{'scene':<24}{'kind':>7}{'points':>12}{'tasks':>9}{'pts/task':>10}"

@@ -1,6 +1,6 @@
 """Assembly of the result file: one labelled xarray Dataset per scene, one netCDF4 file.
 
-Schema (README "Results: the netCDF files"): dims ``(gamma, kappa, r, beta)`` with the
+Schema (docs/results.md): dims ``(gamma, kappa, r, beta)`` with the
 unswept ratios dropped (a point list: one dim ``point``); one variable per
 field of ``tasks.result.FIELDS``; the closed-form boundaries of
 ``analysis.boundaries`` for the methods "paper" and "exact" along r; CF
