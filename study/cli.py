@@ -8,6 +8,7 @@ nothing written), 130 interrupted by Ctrl-C (SIGINT) and 143 stopped by SIGTERM
 from __future__ import annotations
 
 import argparse
+import os
 import shlex
 import signal
 import sys
@@ -207,8 +208,8 @@ def cmd_examples(args) -> int:
             raise StudyError("-o", "name the example to write: study examples NAME -o FILE")
         try:
             print(list_examples())
-        except BrokenPipeError:  # study examples | head
-            sys.stdout = None  # nothing more to flush into the closed pipe
+        except BrokenPipeError:  # study examples | head: no flush into the closed pipe
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
     else:
         write_example(args.name, args.output)
     return 0
