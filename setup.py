@@ -1,11 +1,15 @@
-"""Build hook: record the git commit a wheel or sdist is built from.
+"""Build hooks; everything else is in pyproject.toml.
 
-Everything else is in pyproject.toml. The commit ends up in
-``frictionregimes/_commit.txt`` inside the wheel (and the sdist), which
-``frictionregimes.__version__`` reads where no git clone is at hand.
+* The git commit a wheel or sdist is built from goes to
+  ``frictionregimes/_commit.txt``, which ``frictionregimes.__version__`` reads
+  where no git clone is at hand.
+* The example studies live once, in ``examples/`` at the top of the
+  repository (where a clone runs them); a wheel carries a copy of every file
+  there as ``frictionregimes/examples/`` (``study examples``).
 """
 
 import importlib.util
+import shutil
 from pathlib import Path
 
 from setuptools import setup
@@ -30,11 +34,22 @@ def _write(folder: str) -> None:
         (target / "_commit.txt").write_text(commit + "\n")
 
 
+def _copy_examples(build_lib: str) -> None:
+    source = Path(__file__).resolve().parent / "examples"
+    target = Path(build_lib) / "frictionregimes" / "examples"
+    if source.is_dir():
+        target.mkdir(parents=True, exist_ok=True)
+        for path in sorted(source.iterdir()):
+            if path.is_file():
+                shutil.copy2(path, target / path.name)
+
+
 class BuildPy(build_py):
     def run(self):
         super().run()
-        if not self.editable_mode:
+        if not self.editable_mode:  # an editable install reads the clone's examples/
             _write(self.build_lib)
+            _copy_examples(self.build_lib)
 
 
 class Sdist(sdist):

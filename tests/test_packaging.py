@@ -10,7 +10,6 @@ import shutil
 import subprocess
 import sys
 import tomllib
-from fnmatch import fnmatch
 from pathlib import Path
 
 import pytest
@@ -48,13 +47,9 @@ def test_license_and_spdx():
 
 
 # --------------------------------------------------------------------------- examples
-def test_every_example_is_shipped_and_listed(run_cli):
-    tool = tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["setuptools"]
-    assert tool["package-dir"]["frictionregimes.examples"] == "examples"
-    patterns = tool["package-data"]["frictionregimes.examples"]
+def test_every_example_is_listed(run_cli):
+    """The clone's examples/ (a wheel carries a copy of every file: setup.py)."""
     files = sorted(p for p in (REPO / "examples").iterdir() if p.is_file())
-    for path in files:
-        assert any(fnmatch(path.name, pat) for pat in patterns), f"{path.name} not packaged"
     assert frictionregimes.examples_dir().resolve() == (REPO / "examples").resolve()
     proc = run_cli("examples")
     assert proc.returncode == 0, proc.stderr
