@@ -46,26 +46,28 @@ class Progress:
         self.enabled = enabled
         self.t0 = time.monotonic()
         self.last = self.t0
-        #: Time and points of the first update (the rate is measured from there).
+        #: Time and points of the first update (the rate is measured from there)
+        #: and time of the latest (so cluster shutdown never lowers the final rate).
         self.first: tuple[float, int] | None = None
+        self.latest = self.t0
 
     def start(self) -> None:
         """Start the clock now (after the cluster is up), so the rate counts computing only."""
         self.t0 = self.last = time.monotonic()
         self.first = None
 
-    def rate(self, now: float | None = None) -> float:
-        """Points per second since the first finished chunk (0 while unknown)."""
+    def rate(self) -> float:
+        """Points per second from the first to the last finished chunk (0 while unknown)."""
         if self.first is None:
             return 0.0
         t1, n1 = self.first
-        seconds = (now or time.monotonic()) - t1
+        seconds = self.latest - t1
         return (self.new - n1) / seconds if seconds > 0 and self.new > n1 else 0.0
 
     def update(self, n: int) -> None:
         self.done += n
         self.new += n
-        now = time.monotonic()
+        now = self.latest = time.monotonic()
         if self.first is None:
             self.first = (now, self.new)
         if self.enabled and now - self.last >= self.interval:
@@ -75,7 +77,7 @@ class Progress:
     def line(self, now: float | None = None) -> str:
         now = now or time.monotonic()
         elapsed = max(now - self.t0, 1e-9)
-        steady = self.rate(now)
+        steady = self.rate()
         rate = steady or self.new / elapsed
         pct = 100.0 * self.done / self.total if self.total else 100.0
         eta = _clock((self.total - self.done) / steady) if steady > 0 else "?"

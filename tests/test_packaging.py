@@ -98,6 +98,8 @@ def test_eta_starts_at_the_first_finished_chunk(monkeypatch):
     bar.update(100)  # 100 points in 10 s since the first chunk
     assert bar.rate() == pytest.approx(10.0)
     assert bar.line().endswith("ETA 0:01:20")  # 800 points at 10 points/s
+    clock[0] = 400.0  # e.g. the cluster shutting down: not computing
+    assert bar.rate() == pytest.approx(10.0)
 
 
 def test_compile_is_announced(monkeypatch):
