@@ -429,9 +429,11 @@ def build_report(
         f"# Report: study `{attrs.get('study_name', Path(result_path).stem)}`",
         "",
         f"Result file `{Path(result_path).name}`, {len(scenes)} scene(s); report written {stamp}.",
-        'Theory = closed-form boundaries ("paper": Marino & Cicirello 2021 with S = 1; '
-        '"exact": docs/theory.md 4.3); predicted continuous for beta < beta_continuous, no motion '
-        "for beta >= beta_motion, stick-slip otherwise. Accuracy counts determined points only.",
+        'Theory = closed-form boundaries ("paper": Marino & Cicirello 2021, Eqs. 13 and 53 '
+        'with S = 1 and the motion bounds, docs/theory.md 4.1-4.2; "exact": docs/theory.md 4.3); '
+        "predicted continuous for beta < beta_continuous, no motion for beta >= beta_motion, "
+        "stick-slip otherwise (regime codes: docs/regimes.md). Accuracy counts determined "
+        "points only.",
         "",
     ]
     lines += _summary(scores, kinds)

@@ -1,4 +1,4 @@
-"""Command line: ``study run | plan | report | bench`` (also ``python -m study``).
+"""Command line: ``study run | plan | report | bench | examples`` (also ``python -m study``).
 
 Exit codes: 0 success, 1 a chunk failed, 2 bad input (one line on stderr,
 nothing written), 130 interrupted by Ctrl-C (SIGINT) and 143 stopped by SIGTERM
@@ -8,6 +8,7 @@ nothing written), 130 interrupted by Ctrl-C (SIGINT) and 143 stopped by SIGTERM
 from __future__ import annotations
 
 import argparse
+import os
 import shlex
 import signal
 import sys
@@ -49,7 +50,12 @@ def _positive_int(text: str) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from frictionregimes import __version__
+
     parser = _Parser(prog="study", description=__doc__.splitlines()[0])
+    parser.add_argument(
+        "--version", action="version", version=f"study (frictionregimes) {__version__}"
+    )
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
     run = sub.add_parser("run", help="compute a study and write one netCDF file")
@@ -67,6 +73,9 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--fidelity", help="override the study's fidelity preset")
     run.add_argument("--retries", type=int, default=3, help="retries of a failing task")
     run.add_argument("--quiet", action="store_true", help="no progress display")
+    run.add_argument(
+        "--overwrite", action="store_true", help="compute again even if the output is complete"
+    )
 
     pl = sub.add_parser("plan", help="points, tasks and estimated time, without running")
     pl.add_argument("study", type=Path)
@@ -89,6 +98,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     bench.add_argument("-o", "--output", type=Path, required=True, metavar="DIR")
     bench.add_argument("--quick", action="store_true", help="a smaller point set (~15 s)")
+
+    ex = sub.add_parser(
+        "examples", help="list the example studies (the paper's figures, HPC recipe) or write one"
+    )
+    ex.add_argument("name", nargs="?", help="an example to write out (e.g. quickstart)")
+    ex.add_argument("-o", "--output", type=Path, help="file to write (default: stdout)")
     return parser
 
 
@@ -116,6 +131,7 @@ def cmd_run(args) -> int:
         retries=args.retries,
         progress=not args.quiet,
         command=command,
+        overwrite=args.overwrite,
     )
     return 0
 
@@ -127,6 +143,10 @@ def cmd_plan(args) -> int:
 
     study = _load(args)
     workers = args.workers or default_workers()
+    if args.calibrate:
+        from study.firstrun import compile_once
+
+        compile_once(sys.stderr)  # announced, and kept out of the measured times
     print(f"study {study.name}: fidelity {study.fidelity}, {study.n_points:,} points")
     print(
         f"{'scene':<24}{'kind':>7}{'points':>12}{'tasks':>9}{'pts/task':>10}"
@@ -180,11 +200,30 @@ def cmd_bench(args) -> int:
     return 0
 
 
+def cmd_examples(args) -> int:
+    from study.examples import list_examples, write_example
+
+    if args.name is None:
+        if args.output is not None:
+            raise StudyError("-o", "name the example to write: study examples NAME -o FILE")
+        try:
+            print(list_examples())
+        except BrokenPipeError:  # study examples | head: no flush into the closed pipe
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+    else:
+        write_example(args.name, args.output)
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    handler = {"run": cmd_run, "plan": cmd_plan, "report": cmd_report, "bench": cmd_bench}[
-        args.command
-    ]
+    handler = {
+        "run": cmd_run,
+        "plan": cmd_plan,
+        "report": cmd_report,
+        "bench": cmd_bench,
+        "examples": cmd_examples,
+    }[args.command]
     previous = None
     if args.command == "run":
         previous = signal.signal(signal.SIGTERM, _Terminated())

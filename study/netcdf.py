@@ -1,6 +1,6 @@
 """Assembly of the result file: one labelled xarray Dataset per scene, one netCDF4 file.
 
-Schema (README "Results: the netCDF files"): dims ``(gamma, kappa, beta, r)`` with the
+Schema (docs/results.md): dims ``(gamma, kappa, beta, r)`` with the
 unswept ratios as scalar coordinates (a point list: one dim ``point``), so
 ``ds.regime.plot()`` draws r along x; one variable per field of
 ``tasks.result.FIELDS`` (per-mass fields with a dim ``mass`` before beta);
@@ -84,8 +84,13 @@ def _fill(dtype: str) -> object:
 
 def versions() -> dict[str, str]:
     """Versions of Python and of the packages that made the result."""
+    from frictionregimes import __version__
+
     out = {"python": platform.python_version()}
     for pkg in PACKAGES:
+        if pkg == "frictionregimes":  # the release and, where known, the git commit
+            out[pkg] = __version__
+            continue
         try:
             out[pkg] = metadata.version(pkg)
         except metadata.PackageNotFoundError:

@@ -5,6 +5,11 @@ client and were saved), so it works the same for a local cluster and a remote
 scheduler and never counts a point that could still be lost. Updates are
 throttled: at most every 0.5 s on a terminal (redrawn in place), every 10 s
 otherwise (one line each, for logs).
+
+The rate and ETA are measured from the first finished chunk on, so worker
+start-up, loading (or, on a remote cluster, compiling) the simulator and
+the first chunk's latency never count as computing: until a second batch of
+points has arrived the ETA is ``?``.
 """
 
 from __future__ import annotations
@@ -41,24 +46,41 @@ class Progress:
         self.enabled = enabled
         self.t0 = time.monotonic()
         self.last = self.t0
+        #: Time and points of the first update (the rate is measured from there)
+        #: and time of the latest (so cluster shutdown never lowers the final rate).
+        self.first: tuple[float, int] | None = None
+        self.latest = self.t0
 
     def start(self) -> None:
         """Start the clock now (after the cluster is up), so the rate counts computing only."""
         self.t0 = self.last = time.monotonic()
+        self.first = None
+
+    def rate(self) -> float:
+        """Points per second from the first to the last finished chunk (0 while unknown)."""
+        if self.first is None:
+            return 0.0
+        t1, n1 = self.first
+        seconds = self.latest - t1
+        return (self.new - n1) / seconds if seconds > 0 and self.new > n1 else 0.0
 
     def update(self, n: int) -> None:
         self.done += n
         self.new += n
-        now = time.monotonic()
+        now = self.latest = time.monotonic()
+        if self.first is None:
+            self.first = (now, self.new)
         if self.enabled and now - self.last >= self.interval:
             self.last = now
             self._emit(self.line(now), final=False)
 
     def line(self, now: float | None = None) -> str:
-        elapsed = max((now or time.monotonic()) - self.t0, 1e-9)
-        rate = self.new / elapsed
+        now = now or time.monotonic()
+        elapsed = max(now - self.t0, 1e-9)
+        steady = self.rate()
+        rate = steady or self.new / elapsed
         pct = 100.0 * self.done / self.total if self.total else 100.0
-        eta = _clock((self.total - self.done) / rate) if rate > 0 else "?"
+        eta = _clock((self.total - self.done) / steady) if steady > 0 else "?"
         return (
             f"{self.done:,}/{self.total:,} points ({pct:5.1f}%) | {rate:,.0f} points/s | "
             f"elapsed {_clock(elapsed)} | ETA {eta}"

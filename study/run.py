@@ -40,6 +40,7 @@ from study.chunks import Chunk, ScenePlan, plan
 from study.compute import compute_chunk
 from study.definition import Study
 from study.errors import StudyError, StudyFailed, StudyInterrupted
+from study.firstrun import compile_once
 from study.progress import Progress
 from study.store import WorkDir, temporary_outputs
 
@@ -189,11 +190,15 @@ def connect(
             cluster.close()
 
 
-def _check_runnable(study: Study, output: Path) -> None:
+def _check_runnable(study: Study, output: Path, overwrite: bool = False) -> None:
     if not output.parent.is_dir():
         raise StudyError("-o", f"output directory does not exist: {output.parent}")
     if output.is_dir():
         raise StudyError("-o", f"output is a directory: {output}")
+    if output.exists() and not overwrite:  # written atomically: it exists only when complete
+        raise StudyError(
+            "-o", f"{output} is complete already; --overwrite computes it again and replaces it"
+        )
 
 
 def run_study(
@@ -208,6 +213,7 @@ def run_study(
     progress: bool = True,
     command: str | None = None,
     stream: TextIO | None = None,
+    overwrite: bool = False,
 ) -> RunSummary:
     """Compute every missing chunk of ``study`` and write the result to ``output``.
 
@@ -226,12 +232,16 @@ def run_study(
         ``workers`` processes (default: one per core).
     retries : int
         Times a task that raised is retried before the run fails.
+    overwrite : bool
+        Compute and replace an ``output`` that exists (complete) already;
+        without it such a run is refused.
 
     Raises
     ------
     StudyError
-        Bad output path, unreachable scheduler, a run of the same output
-        already in progress, or an unavailable feature (nothing is written).
+        Bad output path, an existing output without ``overwrite``,
+        unreachable scheduler, a run of the same output already in progress,
+        or an unavailable feature (nothing is written).
     StudyInterrupted
         Ctrl-C (KeyboardInterrupt): finished chunks stay in the work folder,
         no result file.
@@ -253,7 +263,7 @@ def run_study(
         work = MemoryWork()
     else:
         output = Path(output)
-        _check_runnable(study, output)
+        _check_runnable(study, output, overwrite)
         work = WorkDir(output)
     if not work.lock():
         raise StudyError(
@@ -286,6 +296,8 @@ def run_study(
         compute_seconds = compute_wall = 0.0
         if missing:
             bar = Progress(n_points, reused_points, stream=stream, enabled=progress)
+            if client is None and not (scheduler or scheduler_file):
+                compile_once(stream)  # before the local workers start: they load it from cache
             with connect(client, scheduler, scheduler_file, workers, stream) as c:
                 bar.start()
                 t1 = time.perf_counter()

@@ -12,10 +12,12 @@ Modules: :mod:`tasks.scene` (the chain), :mod:`tasks.model` (modal data),
 :mod:`tasks.kernel` (the compiled simulator), :mod:`tasks.classifier`,
 :mod:`tasks.trajectory`, :mod:`tasks.trace`, :mod:`tasks.fidelity` (presets),
 :mod:`tasks.regimes` (the codes), :mod:`tasks.result`, :mod:`tasks.baseline`
-(the paper's method, for benchmarks).
+(the paper's method, for benchmarks), :mod:`tasks.numba_cache` (where the
+compiled simulator is cached; ``NUMBA_CACHE_DIR``).
 """
 
-from tasks import regimes
+# numba_cache first: it picks numba's cache folder before anything is compiled
+from tasks import numba_cache, regimes
 from tasks.classifier import classify
 from tasks.fidelity import PRESETS, Settings, resolve
 from tasks.result import FIELDS, ClassifyResult
@@ -32,6 +34,7 @@ __all__ = [
     "TraceResult",
     "Trajectory",
     "classify",
+    "numba_cache",
     "regimes",
     "resolve",
     "trace_boundaries",

@@ -11,7 +11,7 @@ from tasks.regimes import INITIAL_CONDITIONS, cf_flag_attributes
 #: Output fields of :func:`tasks.classify`, their dtypes and meanings (one home,
 #: reused by the study layer for netCDF variables).
 FIELDS: dict[str, tuple[str, str]] = {
-    "regime": ("int8", "steady-state motion regime (codes: tasks.regimes)"),
+    "regime": ("int8", "steady-state motion regime (codes: docs/regimes.md)"),
     "converged": ("bool", "a periodic steady state was found and verified"),
     "cycles": ("int32", "excitation cycles simulated (shooting cycles included)"),
     "stops_per_cycle": (
