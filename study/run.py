@@ -40,8 +40,11 @@ from study.chunks import Chunk, ScenePlan, plan
 from study.compute import compute_chunk
 from study.definition import Study
 from study.errors import StudyError, StudyFailed, StudyInterrupted
+from study.preflight import check_run, older_result_note
 from study.progress import Progress
 from study.store import WorkDir, temporary_outputs
+from study.verify import chunk_shape
+from study.watchdog import DEFAULT_WORKER_TIMEOUT, Watchdog, watched_batches
 
 #: Chunks kept in flight per worker thread (at least ``MIN_WINDOW`` in all).
 WINDOW_PER_THREAD = 4
@@ -208,6 +211,7 @@ def run_study(
     progress: bool = True,
     command: str | None = None,
     stream: TextIO | None = None,
+    worker_timeout: float = DEFAULT_WORKER_TIMEOUT,
 ) -> RunSummary:
     """Compute every missing chunk of ``study`` and write the result to ``output``.
 
@@ -222,7 +226,10 @@ def run_study(
         (an address) or ``scheduler_file``, or start a LocalCluster with
         ``workers`` processes (default: one per core).
     retries : int
-        Times a task that raised is retried before the run fails.
+        Times a task that raised is retried before the run fails (0..100).
+    worker_timeout : float
+        Seconds without any connected worker, or 20 s without the scheduler,
+        before the run stops with ``StudyFailed`` (:mod:`study.watchdog`).
 
     Raises
     ------
@@ -238,6 +245,7 @@ def run_study(
     stream = stream if stream is not None else sys.stderr
     t0 = time.perf_counter()
     output = Path(output)
+    check_run(output, client, scheduler, scheduler_file, workers, retries, worker_timeout)
     _check_runnable(study, output)
     plans = plan(study)
     work = WorkDir(output)
@@ -253,11 +261,17 @@ def run_study(
         for p in temporary_outputs(output):
             p.unlink(missing_ok=True)
             stale += 1
-        reused = reused_points = 0
+        reused = reused_points = discarded = 0
         for p in plans:
             for c in p.chunks():
                 n_chunks += 1
                 if work.has(c.scene, c.key):
+                    why = work.discard_if_bad(c.scene, c.key, chunk_shape(p.kind, c.rows, c.cols))
+                    if why:  # verified, not trusted (study.verify)
+                        discarded += 1
+                        path = work.chunk_path(c.scene, c.key)
+                        print(f"study: discarded {path}: {why}; computing it again", file=stream)
+                        continue
                     reused += 1
                     reused_points += c.n_points
         saved[0] = reused
@@ -275,7 +289,14 @@ def run_study(
             with connect(client, scheduler, scheduler_file, workers, stream) as c:
                 bar.start()
                 t1 = time.perf_counter()
-                compute_seconds = _compute(c, plans, work, bar, retries, saved)
+                dog = Watchdog(
+                    c,
+                    worker_timeout,
+                    local=client is None and not (scheduler or scheduler_file),
+                    where=str(work.path),
+                    stream=stream,
+                )
+                compute_seconds = _compute(c, plans, work, bar, retries, saved, watchdog=dog)
                 compute_wall = time.perf_counter() - t1
             bar.close()
         from study.netcdf import write_result
@@ -287,7 +308,7 @@ def run_study(
     except KeyboardInterrupt:
         raise StudyInterrupted(
             f"interrupted: {saved[0]:,} of {n_chunks:,} chunks are saved in {work.path}; "
-            "no result file was written; rerun the same command to resume"
+            f"{older_result_note(output)}; rerun the same command to resume"
         ) from None
     finally:
         if finished or not work.count():
@@ -338,7 +359,15 @@ def _failure(chunk: Chunk, exc: BaseException, retries: int, work: WorkDir) -> S
     return StudyFailed(" ".join(msg.split()))
 
 
-def _compute(client, plans, work: WorkDir, bar: Progress, retries: int, saved: list[int]) -> float:
+def _compute(
+    client,
+    plans,
+    work: WorkDir,
+    bar: Progress,
+    retries: int,
+    saved: list[int],
+    watchdog: Watchdog | None = None,
+) -> float:
     """Submit the missing chunks through a sliding window; persist each as it finishes.
 
     ``saved[0]`` counts the chunks on disk (for the message of an interrupted
@@ -357,7 +386,10 @@ def _compute(client, plans, work: WorkDir, bar: Progress, retries: int, saved: l
         nonlocal window, next_look
         now = time.monotonic()
         if now >= next_look:  # workers come and go (adaptive clusters, lost workers)
-            threads = sum(client.nthreads().values())
+            try:
+                threads = sum(client.nthreads().values())
+            except OSError:  # the scheduler is unreachable: the watchdog decides
+                threads = 0
             window = max(MIN_WINDOW, WINDOW_PER_THREAD * threads)
             next_look = now + WINDOW_REFRESH
         batch: list[tuple[ScenePlan, dict, Chunk]] = []
@@ -381,7 +413,7 @@ def _compute(client, plans, work: WorkDir, bar: Progress, retries: int, saved: l
 
     try:
         fill()
-        for done in futures.batches():
+        for done in watched_batches(futures, watchdog):
             try:  # one round trip for the whole batch
                 results = client.gather(done)
             except BaseException as exc:
