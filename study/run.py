@@ -29,7 +29,7 @@ import sys
 import time
 from collections.abc import Iterator
 from concurrent.futures import CancelledError
-from contextlib import contextmanager
+from contextlib import contextmanager, nullcontext
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TextIO
@@ -44,7 +44,13 @@ from study.preflight import check_run, older_result_note
 from study.progress import Progress
 from study.store import WorkDir, temporary_outputs
 from study.verify import chunk_shape
-from study.watchdog import DEFAULT_WORKER_TIMEOUT, Watchdog, watched_batches
+from study.watchdog import (
+    DEFAULT_WORKER_TIMEOUT,
+    Watchdog,
+    quiet_dask_logs,
+    watched_batches,
+    watched_gather,
+)
 
 #: Chunks kept in flight per worker thread (at least ``MIN_WINDOW`` in all).
 WINDOW_PER_THREAD = 4
@@ -286,7 +292,8 @@ def run_study(
         compute_seconds = compute_wall = 0.0
         if missing:
             bar = Progress(n_points, reused_points, stream=stream, enabled=progress)
-            with connect(client, scheduler, scheduler_file, workers, stream) as c:
+            quiet = quiet_dask_logs() if client is None else nullcontext()
+            with quiet, connect(client, scheduler, scheduler_file, workers, stream) as c:
                 bar.start()
                 t1 = time.perf_counter()
                 dog = Watchdog(
@@ -415,7 +422,7 @@ def _compute(
         fill()
         for done in watched_batches(futures, watchdog):
             try:  # one round trip for the whole batch
-                results = client.gather(done)
+                results = watched_gather(client, done, watchdog)
             except BaseException as exc:
                 if isinstance(exc, KeyboardInterrupt):
                     raise
@@ -424,7 +431,7 @@ def _compute(
                 _, chunk = inflight[fut.key]
                 if results is None:
                     try:
-                        arrays = fut.result()
+                        arrays = watched_gather(client, [fut], watchdog)[0]
                     except KeyboardInterrupt:
                         raise
                     except BaseException as exc:  # CancelledError is not an Exception

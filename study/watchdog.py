@@ -15,12 +15,19 @@ second, at the cluster through :class:`Watchdog`:
 
 Either ends in :class:`~study.errors.StudyFailed` (one line, exit 1); every
 finished chunk is already saved in the work folder, so a rerun resumes.
+:func:`quiet_dask_logs` keeps Dask's own error logs (the tracebacks of a lost
+connection, ``CommClosedError``, of a cluster start interrupted by Ctrl-C) off
+the terminal while this process owns the cluster or its connection: the run
+reports what happened in one line.
 """
 
 from __future__ import annotations
 
+import logging
+import threading
 import time
 from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from typing import TextIO
 
 from study.errors import StudyFailed
@@ -31,6 +38,32 @@ DEFAULT_WORKER_TIMEOUT = 300.0
 SCHEDULER_GRACE = 20.0
 #: Seconds between two looks at the cluster.
 LOOK_INTERVAL = 1.0
+
+
+#: Loggers silenced by :func:`quiet_dask_logs`.
+DASK_LOGGERS = ("distributed", "tornado", "asyncio")
+
+
+@contextmanager
+def quiet_dask_logs(level: int = logging.CRITICAL) -> Iterator[None]:
+    """Raise the level of Dask's (and its event loop's) loggers to ``level`` for a while."""
+    previous = {}
+    for name in DASK_LOGGERS:
+        previous[name] = logging.getLogger(name).level
+        logging.getLogger(name).setLevel(level)
+    children = [
+        logging.getLogger(name)
+        for name in list(logging.root.manager.loggerDict)
+        if name.startswith("distributed.")
+    ]
+    previous_children = {lg.name: lg.level for lg in children}
+    for lg in children:
+        lg.setLevel(level)
+    try:
+        yield
+    finally:
+        for name, lvl in {**previous, **previous_children}.items():
+            logging.getLogger(name).setLevel(lvl)
 
 
 class Watchdog:
@@ -104,8 +137,10 @@ class Watchdog:
         if self._idle_since is None:
             self._idle_since = now
             if self.stream is not None:
+                tty = bool(getattr(self.stream, "isatty", lambda: False)())
                 print(
-                    f"\nstudy: no worker is connected; waiting up to {self.worker_timeout:g} s "
+                    ("\n" if tty else "")  # below the progress line
+                    + f"study: no worker is connected; waiting up to {self.worker_timeout:g} s "
                     "(--worker-timeout)",
                     file=self.stream,
                     flush=True,
@@ -137,3 +172,27 @@ def watched_batches(futures, watchdog: Watchdog | None, poll: float = 0.1) -> It
                 condition.wait(timeout=poll)
         else:
             time.sleep(poll)
+
+
+def watched_gather(client, futures: list, watchdog: Watchdog | None, poll: float = 0.2) -> list:
+    """``client.gather(futures)``, watched: a result held by a worker that died before it
+    was fetched waits for a recomputation, which never comes if no worker is left."""
+    if watchdog is None:
+        return client.gather(futures)
+    box: dict[str, object] = {}
+    done = threading.Event()
+
+    def fetch() -> None:
+        try:
+            box["value"] = client.gather(futures)
+        except BaseException as exc:  # noqa: BLE001 - handed to the waiting thread
+            box["error"] = exc
+        finally:
+            done.set()
+
+    threading.Thread(target=fetch, name="study-gather", daemon=True).start()
+    while not done.wait(poll):
+        watchdog.check()
+    if "error" in box:
+        raise box["error"]
+    return box["value"]
