@@ -48,6 +48,7 @@ from study.watchdog import (
     DEFAULT_WORKER_TIMEOUT,
     Watchdog,
     quiet_dask_logs,
+    start_deferring_sigint,
     watched_batches,
     watched_gather,
 )
@@ -170,13 +171,15 @@ def connect(
             raise
     else:
         n = workers or default_workers()
-        cluster = LocalCluster(
-            n_workers=n,
-            threads_per_worker=1,
-            processes=True,
-            host="127.0.0.1",
-            dashboard_address="127.0.0.1:0",
-            silence_logs=logging.ERROR,
+        cluster = start_deferring_sigint(  # Ctrl-C during the start: one line (study.watchdog)
+            lambda: LocalCluster(
+                n_workers=n,
+                threads_per_worker=1,
+                processes=True,
+                host="127.0.0.1",
+                dashboard_address="127.0.0.1:0",
+                silence_logs=logging.ERROR,
+            )
         )
         try:
             client = Client(cluster)

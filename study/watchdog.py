@@ -196,3 +196,41 @@ def watched_gather(client, futures: list, watchdog: Watchdog | None, poll: float
     if "error" in box:
         raise box["error"]
     return box["value"]
+
+
+def start_deferring_sigint(factory: Callable[[], object]) -> object:
+    """Run ``factory()`` (start a LocalCluster) with Ctrl-C held back until it returns.
+
+    SIGINT is blocked in this thread while the cluster starts; the threads and the
+    worker processes started meanwhile inherit the block, so a Ctrl-C in the
+    terminal can neither kill a worker process half-way through its start (Dask's
+    tracebacks) nor reach the workers later (the client stops them). The Ctrl-C
+    is delivered when the start is over: the cluster is closed and
+    ``KeyboardInterrupt`` raised, which the run reports in one line.
+    """
+    import signal
+
+    if threading.current_thread() is not threading.main_thread() or not hasattr(
+        signal, "pthread_sigmask"
+    ):
+        return factory()
+    try:  # start it first: starting it later would unblock SIGINT in the spawning thread
+        from multiprocessing import resource_tracker
+
+        resource_tracker.ensure_running()
+    except (ImportError, OSError):
+        pass
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        cluster = factory()
+    except BaseException:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+        raise
+    try:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)  # a held-back Ctrl-C arrives here
+        time.sleep(0)  # let its handler run inside this try
+    except KeyboardInterrupt:
+        with quiet_dask_logs():
+            cluster.close()
+        raise
+    return cluster
