@@ -41,10 +41,15 @@ class Progress:
         self.enabled = enabled
         self.t0 = time.monotonic()
         self.last = self.t0
+        #: Seconds left as learnt by a :class:`study.cost.CostTracker` (None: from the rate).
+        self.eta_seconds = None
 
     def start(self) -> None:
         """Start the clock now (after the cluster is up), so the rate counts computing only."""
         self.t0 = self.last = time.monotonic()
+        tracker = getattr(self, "tracker", None)
+        if tracker is not None:
+            tracker.t0 = tracker.clock()
 
     def update(self, n: int) -> None:
         self.done += n
@@ -58,7 +63,11 @@ class Progress:
         elapsed = max((now or time.monotonic()) - self.t0, 1e-9)
         rate = self.new / elapsed
         pct = 100.0 * self.done / self.total if self.total else 100.0
-        eta = _clock((self.total - self.done) / rate) if rate > 0 else "?"
+        learnt = self.eta_seconds() if self.eta_seconds is not None else None
+        if learnt is not None:  # per-scene costs learnt from finished tasks (study.cost)
+            eta = _clock(learnt)
+        else:
+            eta = _clock((self.total - self.done) / rate) if rate > 0 else "?"
         return (
             f"{self.done:,}/{self.total:,} points ({pct:5.1f}%) | {rate:,.0f} points/s | "
             f"elapsed {_clock(elapsed)} | ETA {eta}"

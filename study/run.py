@@ -38,6 +38,7 @@ from distributed.diagnostics.plugin import WorkerPlugin
 
 from study.chunks import Chunk, ScenePlan, plan
 from study.compute import compute_chunk
+from study.cost import CostTracker
 from study.definition import Study
 from study.errors import StudyError, StudyFailed, StudyInterrupted
 from study.preflight import check_run, older_result_note
@@ -295,6 +296,8 @@ def run_study(
         compute_seconds = compute_wall = 0.0
         if missing:
             bar = Progress(n_points, reused_points, stream=stream, enabled=progress)
+            bar.tracker = cost_tracker(plans, work)  # learns each scene's cost (study.cost)
+            bar.eta_seconds = bar.tracker.eta
             quiet = quiet_dask_logs() if client is None else nullcontext()
             with quiet, connect(client, scheduler, scheduler_file, workers, stream) as c:
                 bar.start()
@@ -343,6 +346,16 @@ def run_study(
         compute_wall,
         write_seconds,
     )
+
+
+def cost_tracker(plans: list[ScenePlan], work: WorkDir) -> CostTracker:
+    """A :class:`study.cost.CostTracker` of the chunks still missing from ``work``."""
+    estimates = {}
+    for p in plans:
+        missing = sum(c.n_points for c in p.chunks() if not work.has(c.scene, c.key))
+        per = p.est_seconds / max(1, p.spec.n_points)
+        estimates[p.spec.name] = (missing, per)
+    return CostTracker(estimates)
 
 
 def _pending(plans: list[ScenePlan], work: WorkDir) -> Iterator[tuple[ScenePlan, dict, Chunk]]:
@@ -447,6 +460,8 @@ def _compute(
                 saved[0] += 1
                 compute_seconds += float(arrays["seconds"])
                 bar.update(chunk.n_points)
+                if getattr(bar, "tracker", None) is not None:
+                    bar.tracker.record(chunk.scene, chunk.n_points, float(arrays["seconds"]))
             fill()
     except BaseException:
         client.cancel([f for f, _ in inflight.values()])
