@@ -27,6 +27,11 @@ data and for checking the other two. The cycle budgets matter only for the
 slow points next to a boundary: a typical point settles in 10-30 periods.
 The measured cost and disagreement of each preset is in the README
 (``study bench``).
+
+Every setting must lie in its range of :data:`LIMITS` (e.g. ``step_fraction``
+0.01..1, ``event_tol`` 1e-15..1e-3, ``max_cycles`` 1..1e6, ``max_work``
+1e3..1e11) and have its type (an integer setting refuses ``"5"`` and ``True``);
+anything else raises ``ValueError`` naming the setting.
 """
 
 from __future__ import annotations
