@@ -189,10 +189,15 @@ def connect(
                 f"study: local cluster with {n} workers, {dashboard_note(client, local=True)}",
                 file=stream,
             )
-        except BaseException:
+        except BaseException as exc:
             if client is not None:
                 client.close()
             cluster.close()
+            if isinstance(exc, OSError):  # e.g. a worker killed while it started: one line
+                raise StudyFailed(
+                    f"the local cluster failed while starting: {type(exc).__name__}; "
+                    "nothing was computed, rerun to try again"
+                ) from None
             raise
     try:
         yield client
@@ -448,7 +453,7 @@ def _compute(
                 if results is None:
                     try:
                         arrays = watched_gather(client, [fut], watchdog)[0]
-                    except KeyboardInterrupt:
+                    except (KeyboardInterrupt, StudyFailed):  # StudyFailed: the watchdog's
                         raise
                     except BaseException as exc:  # CancelledError is not an Exception
                         raise _failure(chunk, exc, retries, work) from None

@@ -99,6 +99,7 @@ class Watchdog:
         self._next_look = 0.0
         self._lost_since: float | None = None
         self._idle_since: float | None = None
+        self._announced = False
 
     def _fail(self, why: str) -> StudyFailed:
         return StudyFailed(f"{why}; finished chunks are kept in {self.where}, rerun to resume")
@@ -136,7 +137,8 @@ class Watchdog:
             return
         if self._idle_since is None:
             self._idle_since = now
-            if self.stream is not None:
+            if self.stream is not None and not self._announced:  # once per run
+                self._announced = True
                 tty = bool(getattr(self.stream, "isatty", lambda: False)())
                 print(
                     ("\n" if tty else "")  # below the progress line
@@ -198,6 +200,19 @@ def watched_gather(client, futures: list, watchdog: Watchdog | None, poll: float
     return box["value"]
 
 
+def _start(factory: Callable[[], object]) -> object:
+    """``factory()``; a cluster that fails to start is one line (``StudyFailed``)."""
+    try:
+        with quiet_dask_logs():
+            return factory()
+    except Exception as exc:  # noqa: BLE001 - e.g. a worker process killed while starting
+        text = str(exc).splitlines()[0] if str(exc) else ""
+        raise StudyFailed(
+            f"the local cluster did not start: {type(exc).__name__}: {text}; "
+            "nothing was computed, rerun to try again"
+        ) from None
+
+
 def start_deferring_sigint(factory: Callable[[], object]) -> object:
     """Run ``factory()`` (start a LocalCluster) with Ctrl-C held back until it returns.
 
@@ -213,7 +228,7 @@ def start_deferring_sigint(factory: Callable[[], object]) -> object:
     if threading.current_thread() is not threading.main_thread() or not hasattr(
         signal, "pthread_sigmask"
     ):
-        return factory()
+        return _start(factory)
     try:  # start it first: starting it later would unblock SIGINT in the spawning thread
         from multiprocessing import resource_tracker
 
@@ -222,7 +237,7 @@ def start_deferring_sigint(factory: Callable[[], object]) -> object:
         pass
     old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
     try:
-        cluster = factory()
+        cluster = _start(factory)
     except BaseException:
         signal.pthread_sigmask(signal.SIG_SETMASK, old)
         raise

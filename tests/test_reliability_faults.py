@@ -249,6 +249,35 @@ def test_external_cluster_lost_one_line_exit_1(tmp_path, fault):
     assert len(list(out.with_name("long.nc.work").glob("*/*.npz"))) >= 2  # work kept
 
 
+def test_local_workers_killed_until_their_nannies_give_up(tmp_path):
+    """The audit's hang: kill the local worker process every 2 s; after some kills its
+    nanny stops restarting it. The run must stop after --worker-timeout, one line."""
+    import psutil
+
+    proc = _start_run(
+        tmp_path, "-o", "long.nc", "--workers", "1", "--quiet", "--worker-timeout", "10"
+    )
+    _wait_saved(tmp_path / "long.nc", 1, proc)
+    deadline = time.monotonic() + WAIT
+    kills = 0
+    while proc.poll() is None and time.monotonic() < deadline:
+        for child in psutil.Process(proc.pid).children(recursive=True):
+            try:
+                if "spawn_main" in " ".join(child.cmdline()):
+                    child.kill()
+                    kills += 1
+            except psutil.NoSuchProcess:
+                pass
+        time.sleep(2)
+    rc, lines, err = _finish(proc)
+    if rc == 0:  # the run won the race (finished between kills): nothing to check
+        pytest.skip(f"the run finished despite {kills} kills")
+    assert rc == 1, err
+    assert "Traceback" not in err, err
+    assert lines[-1].startswith("study: error: ") and "rerun to resume" in lines[-1], err
+    assert sum(ln.startswith("study: error:") for ln in lines) == 1, err
+
+
 def test_ctrl_c_during_local_cluster_start_one_line(tmp_path):
     proc = _start_run(tmp_path, "-o", "long.nc", "--workers", "2")
     first = proc.stderr.readline()  # the plan line: the cluster starts now
