@@ -116,11 +116,25 @@ _EPS = np.finfo(float).eps
 
 
 # ----------------------------------------------------------------------------- inputs
+#: Frequency ratios the closed forms are evaluated for: within it every term
+#: (r^2, r^4, Omega_i = omega_i / r) is finite and normal in double precision, so
+#: the bounds are accurate without overflow; beyond it they would overflow.
+R_RANGE = (1e-100, 1e100)
+
+
 def _as_r(r: ArrayLike) -> np.ndarray:
-    """r as a float array; it must be positive and finite."""
-    r_arr = np.asarray(r, dtype=float)
-    if not np.all(np.isfinite(r_arr)) or np.any(r_arr <= 0.0):
-        raise ValueError("r: every frequency ratio must be positive and finite")
+    """r as a float array of numbers in :data:`R_RANGE` (strings and booleans refused)."""
+    arr = np.asarray(r)
+    if arr.dtype.kind not in "iuf":
+        raise ValueError(f"r: must be a number or an array of numbers, got {r!r}"[:200])
+    r_arr = arr.astype(float)
+    lo, hi = R_RANGE
+    ok = np.isfinite(r_arr) & (r_arr >= lo) & (r_arr <= hi)
+    if not np.all(ok):
+        bad = r_arr[~ok].flat[0]
+        raise ValueError(
+            f"r: every frequency ratio must be finite and in [{lo:g}, {hi:g}], got {float(bad)!r}"
+        )
     return r_arr
 
 
@@ -538,7 +552,10 @@ def predict(scene: Scene, r: ArrayLike, beta: ArrayLike, method: str = "paper") 
         ``beta < beta_continuous``, else :data:`tasks.regimes.STICK_SLIP`.
     """
     r_arr = _as_r(r)
-    beta_arr = np.asarray(beta, dtype=float)
+    beta_arr = np.asarray(beta)
+    if beta_arr.dtype.kind not in "iuf":
+        raise ValueError(f"beta: must be a number or an array of numbers, got {beta!r}"[:200])
+    beta_arr = beta_arr.astype(float)
     if np.any(np.isnan(beta_arr)) or np.any(beta_arr < 0.0):
         raise ValueError("beta: every friction ratio must be >= 0 (and not NaN)")
     shape = np.broadcast_shapes(r_arr.shape, beta_arr.shape)

@@ -28,6 +28,7 @@ import numpy as np
 
 from study.cost import TRACE_POINTS_PER_R, chunk_target, seconds_per_point
 from study.definition import SceneSpec, Study
+from study.verify import simulator_version
 
 #: Bump when the meaning of a chunk changes, so old work folders are not reused.
 CHUNK_FORMAT = 2  # 2: design quantities (amplitude, dissipation, ...)
@@ -144,6 +145,7 @@ class ScenePlan:
             "kind": self.kind,
             "fidelity": self.fidelity,
             "settings": self.settings,
+            "code": simulator_version(),  # chunks of another simulator are never reused
         }
         return hashlib.sha256(json.dumps(ident, sort_keys=True).encode())
 

@@ -15,6 +15,7 @@ import sys
 from pathlib import Path
 
 from study.errors import StudyError, StudyFailed, StudyInterrupted
+from study.watchdog import DEFAULT_WORKER_TIMEOUT
 
 EXIT_FAILED = 1
 EXIT_BAD_INPUT = 2
@@ -71,7 +72,14 @@ def build_parser() -> argparse.ArgumentParser:
         help="local worker processes (default: one per core); with --scheduler: wait for N workers",
     )
     run.add_argument("--fidelity", help="override the study's fidelity preset")
-    run.add_argument("--retries", type=int, default=3, help="retries of a failing task")
+    run.add_argument("--retries", type=int, default=3, help="retries of a failing task (0-100)")
+    run.add_argument(
+        "--worker-timeout",
+        type=float,
+        default=DEFAULT_WORKER_TIMEOUT,
+        metavar="SECONDS",
+        help="stop (exit 1, work kept) after this long without any worker (default: 300)",
+    )
     run.add_argument("--quiet", action="store_true", help="no progress display")
     run.add_argument(
         "--overwrite", action="store_true", help="compute again even if the output is complete"
@@ -129,6 +137,7 @@ def cmd_run(args) -> int:
         scheduler_file=args.scheduler_file,
         workers=args.workers,
         retries=args.retries,
+        worker_timeout=args.worker_timeout,
         progress=not args.quiet,
         command=command,
         overwrite=args.overwrite,

@@ -89,3 +89,58 @@ def calibrate(
     t0 = time.perf_counter()
     classify(scene, rs, bs, **fields)
     return (time.perf_counter() - t0) / n
+
+
+class CostTracker:
+    """Learns the cost of each scene from its finished tasks; gives the ETA of a run.
+
+    The cost model above sizes the tasks (it must not change between a run and
+    its resume: task sizes define the chunk keys). What a task really costs is
+    learnt as tasks finish: per scene, the compute seconds per point of its
+    finished chunks; for a scene without a finished chunk yet, the model's
+    estimate scaled by what the finished scenes cost against their estimates
+    (the machine's speed). The remaining compute seconds are divided by the
+    parallelism observed (compute seconds finished per wall second), so a slow
+    scene (e.g. 20 DOF, 50 times the estimate) neither hides behind the rate of
+    the fast ones nor makes the first ETA absurd.
+
+    Parameters
+    ----------
+    estimates : dict
+        Scene name -> (points still to compute, model seconds per point).
+    clock : callable
+        Wall clock (``time.monotonic``).
+    """
+
+    def __init__(self, estimates: dict[str, tuple[int, float]], clock=time.monotonic) -> None:
+        self.remaining = {k: int(n) for k, (n, _) in estimates.items()}
+        self.model = {k: float(s) for k, (_, s) in estimates.items()}
+        self.points: dict[str, int] = {}
+        self.seconds: dict[str, float] = {}
+        self.clock = clock
+        self.t0 = clock()
+
+    def record(self, scene: str, n_points: int, seconds: float) -> None:
+        """One finished chunk of ``scene``: ``n_points`` in ``seconds`` of compute."""
+        self.remaining[scene] = max(0, self.remaining.get(scene, 0) - n_points)
+        self.points[scene] = self.points.get(scene, 0) + n_points
+        self.seconds[scene] = self.seconds.get(scene, 0.0) + max(0.0, float(seconds))
+
+    def per_point(self, scene: str) -> float:
+        """Learnt seconds per point of ``scene`` (the scaled model before its first chunk)."""
+        if self.points.get(scene):
+            return self.seconds[scene] / self.points[scene]
+        done = [k for k in self.points if self.points[k]]
+        model_done = sum(self.model.get(k, 0.0) * self.points[k] for k in done)
+        speed = sum(self.seconds[k] for k in done) / model_done if model_done > 0 else 1.0
+        return self.model.get(scene, 0.0) * speed
+
+    def eta(self) -> float | None:
+        """Wall seconds left, or None before the first finished chunk."""
+        spent = sum(self.seconds.values())
+        if spent <= 0.0:
+            return None
+        wall = max(self.clock() - self.t0, 1e-9)
+        parallel = max(1.0, spent / wall)
+        left = sum(n * self.per_point(k) for k, n in self.remaining.items())
+        return left / parallel

@@ -38,6 +38,7 @@ from typing import Any
 import numpy as np
 
 from study.errors import StudyError, field_error
+from study.limits import check_study
 from tasks.fidelity import PRESETS, Settings, resolve
 from tasks.scene import Scene
 
@@ -471,6 +472,8 @@ class Study:
             data = tomllib.loads(text)
         except tomllib.TOMLDecodeError as exc:
             raise StudyError("", f"TOML syntax error: {exc}", source) from None
+        except RecursionError:  # tables or arrays nested hundreds deep
+            raise StudyError("", "TOML nested too deeply to read", source) from None
         return cls.from_dict(data, source=source, text=text, default_name=path.stem)
 
     @classmethod
@@ -528,6 +531,7 @@ class Study:
 
     def validated(self) -> Study:
         """Check the whole-study rules (names, settings, size); return ``self``."""
+        check_study(self)  # ranges and sizes the numerics support (study.limits)
         seen: dict[str, int] = {}
         for i, s in enumerate(self.scenes):
             if s.name in seen:

@@ -50,11 +50,16 @@ class Progress:
         #: and time of the latest (so cluster shutdown never lowers the final rate).
         self.first: tuple[float, int] | None = None
         self.latest = self.t0
+        #: Seconds left as learnt by a :class:`study.cost.CostTracker` (None: from the rate).
+        self.eta_seconds = None
 
     def start(self) -> None:
         """Start the clock now (after the cluster is up), so the rate counts computing only."""
         self.t0 = self.last = time.monotonic()
         self.first = None
+        tracker = getattr(self, "tracker", None)
+        if tracker is not None:
+            tracker.t0 = tracker.clock()
 
     def rate(self) -> float:
         """Points per second from the first to the last finished chunk (0 while unknown)."""
@@ -80,7 +85,11 @@ class Progress:
         steady = self.rate()
         rate = steady or self.new / elapsed
         pct = 100.0 * self.done / self.total if self.total else 100.0
-        eta = _clock((self.total - self.done) / steady) if steady > 0 else "?"
+        learnt = self.eta_seconds() if self.eta_seconds is not None else None
+        if learnt is not None:  # per-scene costs learnt from finished tasks (study.cost)
+            eta = _clock(learnt)
+        else:
+            eta = _clock((self.total - self.done) / steady) if steady > 0 else "?"
         return (
             f"{self.done:,}/{self.total:,} points ({pct:5.1f}%) | {rate:,.0f} points/s | "
             f"elapsed {_clock(elapsed)} | ETA {eta}"

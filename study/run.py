@@ -29,7 +29,7 @@ import sys
 import time
 from collections.abc import Iterator
 from concurrent.futures import CancelledError
-from contextlib import contextmanager
+from contextlib import contextmanager, nullcontext
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TextIO
@@ -38,11 +38,22 @@ from distributed.diagnostics.plugin import WorkerPlugin
 
 from study.chunks import Chunk, ScenePlan, plan
 from study.compute import compute_chunk
+from study.cost import CostTracker
 from study.definition import Study
 from study.errors import StudyError, StudyFailed, StudyInterrupted
 from study.firstrun import compile_once
+from study.preflight import check_run, older_result_note
 from study.progress import Progress
 from study.store import WorkDir, temporary_outputs
+from study.verify import chunk_shape
+from study.watchdog import (
+    DEFAULT_WORKER_TIMEOUT,
+    Watchdog,
+    quiet_dask_logs,
+    start_deferring_sigint,
+    watched_batches,
+    watched_gather,
+)
 
 #: Chunks kept in flight per worker thread (at least ``MIN_WINDOW`` in all).
 WINDOW_PER_THREAD = 4
@@ -162,13 +173,15 @@ def connect(
             raise
     else:
         n = workers or default_workers()
-        cluster = LocalCluster(
-            n_workers=n,
-            threads_per_worker=1,
-            processes=True,
-            host="127.0.0.1",
-            dashboard_address="127.0.0.1:0",
-            silence_logs=logging.ERROR,
+        cluster = start_deferring_sigint(  # Ctrl-C during the start: one line (study.watchdog)
+            lambda: LocalCluster(
+                n_workers=n,
+                threads_per_worker=1,
+                processes=True,
+                host="127.0.0.1",
+                dashboard_address="127.0.0.1:0",
+                silence_logs=logging.ERROR,
+            )
         )
         try:
             client = Client(cluster)
@@ -177,10 +190,15 @@ def connect(
                 f"study: local cluster with {n} workers, {dashboard_note(client, local=True)}",
                 file=stream,
             )
-        except BaseException:
+        except BaseException as exc:
             if client is not None:
                 client.close()
             cluster.close()
+            if isinstance(exc, OSError):  # e.g. a worker killed while it started: one line
+                raise StudyFailed(
+                    f"the local cluster failed while starting: {type(exc).__name__}; "
+                    "nothing was computed, rerun to try again"
+                ) from None
             raise
     try:
         yield client
@@ -214,6 +232,7 @@ def run_study(
     command: str | None = None,
     stream: TextIO | None = None,
     overwrite: bool = False,
+    worker_timeout: float = DEFAULT_WORKER_TIMEOUT,
 ) -> RunSummary:
     """Compute every missing chunk of ``study`` and write the result to ``output``.
 
@@ -231,10 +250,13 @@ def run_study(
         (an address) or ``scheduler_file``, or start a LocalCluster with
         ``workers`` processes (default: one per core).
     retries : int
-        Times a task that raised is retried before the run fails.
+        Times a task that raised is retried before the run fails (0..100).
     overwrite : bool
         Compute and replace an ``output`` that exists (complete) already;
         without it such a run is refused.
+    worker_timeout : float
+        Seconds without any connected worker, or 20 s without the scheduler,
+        before the run stops with ``StudyFailed`` (:mod:`study.watchdog`).
 
     Raises
     ------
@@ -256,6 +278,7 @@ def run_study(
     stream = stream if stream is not None else sys.stderr
     t0 = time.perf_counter()
     in_memory = output is None
+    check_run(output, client, scheduler, scheduler_file, workers, retries, worker_timeout)
     plans = plan(study)
     if in_memory:
         from study.memory import MemoryWork
@@ -277,11 +300,17 @@ def run_study(
         for p in [] if in_memory else temporary_outputs(output):
             p.unlink(missing_ok=True)
             stale += 1
-        reused = reused_points = 0
+        reused = reused_points = discarded = 0
         for p in plans:
             for c in p.chunks():
                 n_chunks += 1
                 if work.has(c.scene, c.key):
+                    why = work.discard_if_bad(c.scene, c.key, chunk_shape(p.kind, c.rows, c.cols))
+                    if why:  # verified, not trusted (study.verify)
+                        discarded += 1
+                        path = work.chunk_path(c.scene, c.key)
+                        print(f"study: discarded {path}: {why}; computing it again", file=stream)
+                        continue
                     reused += 1
                     reused_points += c.n_points
         saved[0] = reused
@@ -296,12 +325,22 @@ def run_study(
         compute_seconds = compute_wall = 0.0
         if missing:
             bar = Progress(n_points, reused_points, stream=stream, enabled=progress)
+            bar.tracker = cost_tracker(plans, work)  # learns each scene's cost (study.cost)
+            bar.eta_seconds = bar.tracker.eta
             if client is None and not (scheduler or scheduler_file):
                 compile_once(stream)  # before the local workers start: they load it from cache
-            with connect(client, scheduler, scheduler_file, workers, stream) as c:
+            quiet = quiet_dask_logs() if client is None else nullcontext()
+            with quiet, connect(client, scheduler, scheduler_file, workers, stream) as c:
                 bar.start()
                 t1 = time.perf_counter()
-                compute_seconds = _compute(c, plans, work, bar, retries, saved)
+                dog = Watchdog(
+                    c,
+                    worker_timeout,
+                    local=client is None and not (scheduler or scheduler_file),
+                    where=str(work.path),
+                    stream=stream,
+                )
+                compute_seconds = _compute(c, plans, work, bar, retries, saved, watchdog=dog)
                 compute_wall = time.perf_counter() - t1
             bar.close()
         from study.netcdf import result_tree, write_result
@@ -316,7 +355,7 @@ def run_study(
     except KeyboardInterrupt:
         raise StudyInterrupted(
             f"interrupted: {saved[0]:,} of {n_chunks:,} chunks are saved in {work.path}; "
-            "no result file was written; rerun the same command to resume"
+            f"{older_result_note(output)}; rerun the same command to resume"
         ) from None
     finally:
         if finished or not work.count():
@@ -346,6 +385,16 @@ def run_study(
     )
 
 
+def cost_tracker(plans: list[ScenePlan], work: WorkDir) -> CostTracker:
+    """A :class:`study.cost.CostTracker` of the chunks still missing from ``work``."""
+    estimates = {}
+    for p in plans:
+        missing = sum(c.n_points for c in p.chunks() if not work.has(c.scene, c.key))
+        per = p.est_seconds / max(1, p.spec.n_points)
+        estimates[p.spec.name] = (missing, per)
+    return CostTracker(estimates)
+
+
 def _pending(plans: list[ScenePlan], work: WorkDir) -> Iterator[tuple[ScenePlan, dict, Chunk]]:
     for p in plans:
         axes = p.axes()
@@ -370,7 +419,15 @@ def _failure(chunk: Chunk, exc: BaseException, retries: int, work: WorkDir) -> S
     return StudyFailed(" ".join(msg.split()))
 
 
-def _compute(client, plans, work: WorkDir, bar: Progress, retries: int, saved: list[int]) -> float:
+def _compute(
+    client,
+    plans,
+    work: WorkDir,
+    bar: Progress,
+    retries: int,
+    saved: list[int],
+    watchdog: Watchdog | None = None,
+) -> float:
     """Submit the missing chunks through a sliding window; persist each as it finishes.
 
     ``saved[0]`` counts the chunks on disk (for the message of an interrupted
@@ -389,7 +446,10 @@ def _compute(client, plans, work: WorkDir, bar: Progress, retries: int, saved: l
         nonlocal window, next_look
         now = time.monotonic()
         if now >= next_look:  # workers come and go (adaptive clusters, lost workers)
-            threads = sum(client.nthreads().values())
+            try:
+                threads = sum(client.nthreads().values())
+            except OSError:  # the scheduler is unreachable: the watchdog decides
+                threads = 0
             window = max(MIN_WINDOW, WINDOW_PER_THREAD * threads)
             next_look = now + WINDOW_REFRESH
         batch: list[tuple[ScenePlan, dict, Chunk]] = []
@@ -413,9 +473,9 @@ def _compute(client, plans, work: WorkDir, bar: Progress, retries: int, saved: l
 
     try:
         fill()
-        for done in futures.batches():
+        for done in watched_batches(futures, watchdog):
             try:  # one round trip for the whole batch
-                results = client.gather(done)
+                results = watched_gather(client, done, watchdog)
             except BaseException as exc:
                 if isinstance(exc, KeyboardInterrupt):
                     raise
@@ -424,8 +484,8 @@ def _compute(client, plans, work: WorkDir, bar: Progress, retries: int, saved: l
                 _, chunk = inflight[fut.key]
                 if results is None:
                     try:
-                        arrays = fut.result()
-                    except KeyboardInterrupt:
+                        arrays = watched_gather(client, [fut], watchdog)[0]
+                    except (KeyboardInterrupt, StudyFailed):  # StudyFailed: the watchdog's
                         raise
                     except BaseException as exc:  # CancelledError is not an Exception
                         raise _failure(chunk, exc, retries, work) from None
@@ -437,6 +497,8 @@ def _compute(client, plans, work: WorkDir, bar: Progress, retries: int, saved: l
                 saved[0] += 1
                 compute_seconds += float(arrays["seconds"])
                 bar.update(chunk.n_points)
+                if getattr(bar, "tracker", None) is not None:
+                    bar.tracker.record(chunk.scene, chunk.n_points, float(arrays["seconds"]))
             fill()
     except BaseException:
         client.cancel([f for f, _ in inflight.values()])

@@ -7,6 +7,11 @@ either exists complete or not at all. A temporary file left by a process that
 died mid-write is deleted by the next run (:meth:`WorkDir.clean`). The folder
 is removed only after the final netCDF file is in place.
 
+Chunk files are verified, not trusted (:mod:`study.verify`): each stores its
+key, shape, simulator version and a checksum; :meth:`WorkDir.discard_if_bad`
+deletes a file that fails (the run reports it and computes the chunk again),
+and :meth:`WorkDir.load` refuses one.
+
 One run at a time owns a work folder (:meth:`WorkDir.lock`, an advisory
 ``flock`` on ``.lock``), so two runs of the same output cannot delete each
 other's temporary files.
@@ -20,6 +25,9 @@ from glob import escape as glob_escape
 from pathlib import Path
 
 import numpy as np
+
+from study.errors import StudyFailed
+from study.verify import META, check_arrays, check_chunk, read_chunk, with_metadata
 
 try:
     import fcntl
@@ -65,7 +73,9 @@ class WorkDir:
         return self.chunk_path(scene, key).is_file()
 
     def save(self, scene: str, key: str, arrays: dict[str, np.ndarray]) -> Path:
-        """Write one chunk atomically (temporary file, fsync, ``os.replace``)."""
+        """Write one chunk atomically (temporary file, fsync, ``os.replace``), with its
+        key, shape, simulator version and checksum (:func:`study.verify.with_metadata`)."""
+        arrays = with_metadata(key, arrays)
         final = self.chunk_path(scene, key)
         final.parent.mkdir(parents=True, exist_ok=True)
         tmp = final.with_name(f".{final.name}.{os.getpid()}{TMP_SUFFIX}")
@@ -81,8 +91,25 @@ class WorkDir:
         return final
 
     def load(self, scene: str, key: str) -> dict[str, np.ndarray]:
-        with np.load(self.chunk_path(scene, key)) as z:
-            return {k: z[k] for k in z.files}
+        """The result arrays of a chunk, verified (``StudyFailed`` naming the file if not)."""
+        path = self.chunk_path(scene, key)
+        try:
+            arrays = read_chunk(path)
+            why = check_arrays(arrays, key)
+        except ValueError as exc:
+            why = str(exc)
+        if why:
+            path.unlink(missing_ok=True)
+            raise StudyFailed(f"chunk file {path} {why}; it was deleted, rerun to compute it")
+        return {k: v for k, v in arrays.items() if k not in META}
+
+    def discard_if_bad(self, scene: str, key: str, shape: tuple[int, ...] | None) -> str | None:
+        """Verify a chunk file on disk; delete it and return why if it fails, else None."""
+        path = self.chunk_path(scene, key)
+        why = check_chunk(path, key, shape)
+        if why:
+            path.unlink(missing_ok=True)
+        return why
 
     def count(self) -> int:
         """Number of chunk files on disk (any study)."""

@@ -14,6 +14,34 @@ from tasks.scene import Scene
 
 _IC_CODES = {name: code for code, name in regimes.INITIAL_CONDITIONS.items()}
 
+#: Frequency ratios r (Eq. 7) the kernel handles soundly: within it the modal
+#: frequencies relative to the excitation (1 / r times those of the chain) stay
+#: resolvable by the bracket scan within the work budget.
+R_RANGE = (1e-4, 1e4)
+#: Largest friction ratio beta (Eq. 8): far above every motion bound of a scene
+#: in ``R_RANGE`` (no motion), and small enough for the contact-force test.
+BETA_MAX = 1e6
+
+
+def check_points(name: str, value: object, lower: float, upper: float, open_lower: bool):
+    """``value`` as a float64 array of numbers in range, or a ``ValueError`` naming ``name``.
+
+    Strings, booleans and objects are refused (``np.asarray("1.0", float)`` would
+    silently parse a string, ``True`` would become 1.0).
+    """
+    arr = np.asarray(value)
+    if arr.dtype.kind not in "iuf":
+        what = type(value).__name__ if arr.ndim == 0 else f"an array of {arr.dtype}"
+        text = f"{name}: must be a number or an array of numbers, got {what} {value!r}"
+        raise ValueError(text[:200])
+    arr = arr.astype(np.float64)
+    low_ok = arr > lower if open_lower else arr >= lower
+    if not np.all(np.isfinite(arr)) or not np.all(low_ok & (arr <= upper)):
+        bad = arr[~(np.isfinite(arr) & low_ok & (arr <= upper))].flat[0]
+        rule = f"in {'(' if open_lower else '['}{lower:g}, {upper:g}]"
+        raise ValueError(f"{name}: every value must be finite and {rule}, got {float(bad)!r}")
+    return arr
+
 
 @lru_cache(maxsize=64)
 def scene_modes_cached(scene: Scene) -> SceneModes:
@@ -76,16 +104,19 @@ def classify(
     Raises
     ------
     ValueError
-        For r <= 0, beta < 0, non-finite values or bad settings.
+        Naming the field: r outside ``R_RANGE`` (1e-4..1e4), beta outside
+        0..``BETA_MAX`` (1e6), non-finite values, strings or booleans for r or
+        beta, bad settings (:data:`tasks.fidelity.LIMITS`).
     """
+    if not isinstance(scene, Scene):
+        raise ValueError(f"scene: must be a tasks.Scene, got {type(scene).__name__}")
+    if not isinstance(fidelity, str):
+        raise ValueError(f"fidelity: must be a string, got {fidelity!r}")
     resolved = resolve(fidelity, **settings)
     r_arr, beta_arr = np.broadcast_arrays(
-        np.asarray(r, dtype=np.float64), np.asarray(beta, dtype=np.float64)
+        check_points("r", r, *R_RANGE, open_lower=False),
+        check_points("beta", beta, 0.0, BETA_MAX, open_lower=False),
     )
-    if not np.all(np.isfinite(r_arr)) or np.any(r_arr <= 0.0):
-        raise ValueError("r: every frequency ratio must be positive and finite")
-    if not np.all(np.isfinite(beta_arr)) or np.any(beta_arr < 0.0):
-        raise ValueError("beta: every friction ratio must be >= 0 and finite")
     shape = r_arr.shape
     flat_r = np.ascontiguousarray(r_arr.ravel())
     flat_beta = np.ascontiguousarray(beta_arr.ravel())

@@ -35,28 +35,53 @@ import numpy as np
 CONTACTS = ("ground", "base", "mass")
 
 
+#: Range of the mass and stiffness ratios gamma_i, kappa_i (Eqs. 66-67) where the
+#: modal data, the closed forms and the kernel are sound in double precision: the
+#: modal frequencies then stay within about 1e6 of each other, so the brackets of
+#: the shortest modal half-period still resolve the slowest motion in bounded work.
+RATIO_RANGE = (1e-6, 1e6)
+#: Largest chain handled (``dof``): the study files and tests go to 20 masses.
+MAX_DOF = 100
+
+
+def _is_real(v: object) -> bool:
+    """A real number, not a bool (``True`` is an ``int`` in Python) nor a string."""
+    return isinstance(v, Real) and not isinstance(v, bool | np.bool_)
+
+
 def _ratio_vector(name: str, value: float | Sequence[float], dof: int) -> tuple[float, ...]:
     """Ratios of masses (or springs) 2..dof from a number or a sequence of dof - 1 numbers."""
-    if isinstance(value, bool):
+    if isinstance(value, bool | np.bool_):
         raise ValueError(f"{name}: expected a positive number or {dof - 1} numbers, got a bool")
-    if isinstance(value, Real):
+    if isinstance(value, str | bytes):
+        raise ValueError(
+            f"{name}: expected a positive number or {dof - 1} numbers, got the string {value!r}"
+        )
+    if _is_real(value):
         values = (float(value),) * (dof - 1)
     else:
         try:
-            values = tuple(float(v) for v in value)
-        except (TypeError, ValueError):
+            items = list(value)
+        except TypeError:
             raise ValueError(
                 f"{name}: expected a positive number or a sequence of {dof - 1} numbers, "
                 f"got {value!r}"
             ) from None
+        bad = [v for v in items if not _is_real(v)]
+        if bad:
+            raise ValueError(f"{name}: every ratio must be a number, got {bad[0]!r}")
+        values = tuple(float(v) for v in items)
         if len(values) != dof - 1:
             raise ValueError(
                 f"{name}: a sequence must have dof - 1 = {dof - 1} entries "
                 f"(ratios of masses/springs 2..{dof}), got {len(values)}"
             )
+    lo, hi = RATIO_RANGE
     for v in values:
         if not np.isfinite(v) or v <= 0.0:
             raise ValueError(f"{name}: every ratio must be positive and finite, got {v!r}")
+        if not lo <= v <= hi:
+            raise ValueError(f"{name}: every ratio must be in [{lo:g}, {hi:g}], got {v!r}")
     return values
 
 
@@ -97,8 +122,8 @@ class Scene:
             raise ValueError(f"contact: must be one of {CONTACTS}, got {self.contact!r}")
         if isinstance(self.dof, bool) or not isinstance(self.dof, int | np.integer):
             raise ValueError(f"dof: must be an integer >= 1, got {self.dof!r}")
-        if self.dof < 1:
-            raise ValueError(f"dof: must be >= 1, got {self.dof}")
+        if not 1 <= self.dof <= MAX_DOF:
+            raise ValueError(f"dof: must be in 1..{MAX_DOF}, got {self.dof}")
         if self.contact == "mass" and self.dof < 2:
             raise ValueError("dof: a 'mass' contact joins two masses, so dof must be >= 2")
         j = self.contact_mass
@@ -116,7 +141,7 @@ class Scene:
         object.__setattr__(self, "contact_mass", int(j))
         # Canonical, hashable field values (a number stays a number when all equal).
         for name, vals, given in (("gamma", gam, self.gamma), ("kappa", kap, self.kappa)):
-            canon = float(given) if isinstance(given, Real) else tuple(vals)
+            canon = float(given) if _is_real(given) else tuple(vals)
             object.__setattr__(self, name, canon)
         object.__setattr__(self, "gammas", (1.0, *gam))
         object.__setattr__(self, "kappas", (1.0, *kap))
