@@ -35,6 +35,7 @@ from study.definition import Study
 from study.store import TMP_SUFFIX, WorkDir, fsync_dir
 from study.trace import TRACE_FIELDS
 from tasks import regimes
+from tasks.adaptive import ADAPTIVE_FIELDS
 from tasks.result import FIELDS
 
 #: Closed-form methods stored for every scene (``analysis.boundaries``).
@@ -193,7 +194,10 @@ def _data_layout(plan: ScenePlan) -> tuple[tuple[str, ...], tuple[int, ...], dic
         )
     dims = (*sweeps, "r", "beta")
     shape = (*spec.sweep_shape, len(spec.r), len(spec.beta))
-    return dims, shape, {k: dt for k, (dt, _) in FIELDS.items()}
+    variables = {k: dt for k, (dt, _) in FIELDS.items()}
+    if plan.kind == "adaptive":  # a grid plus `simulated` and `verification`
+        variables |= {k: dt for k, (dt, _) in ADAPTIVE_FIELDS.items()}
+    return dims, shape, variables
 
 
 def _nc_chunksizes(shape: tuple[int, ...]) -> tuple[int, ...]:
@@ -242,7 +246,7 @@ def scene_dataset(plan: ScenePlan, study: Study) -> tuple[xr.Dataset, dict[str, 
     encoding: dict[str, dict] = {name: {"_FillValue": None} for name in coords}
     for name, dt in variables.items():
         attrs = {"units": "1"}
-        attrs["long_name"] = FIELDS[name][1] if name in FIELDS else TRACE_FIELDS[name][1]
+        attrs["long_name"] = ({**FIELDS, **TRACE_FIELDS, **ADAPTIVE_FIELDS})[name][1]
         enc: dict[str, object] = {
             "zlib": True,
             "complevel": 4,
@@ -328,6 +332,11 @@ def _fill_chunks(path: Path, plans: list[ScenePlan], work: WorkDir, grouped: boo
         for plan in plans:
             group = nc.groups[plan.spec.name] if grouped else nc
             _, _, variables = _data_layout(plan)
+            if plan.kind == "adaptive":
+                from study.adaptive import fill_adaptive
+
+                fill_adaptive(group, plan, work, variables)
+                continue
             for chunk in plan.chunks():
                 arrays = work.load(plan.spec.name, chunk.key)
                 if plan.kind == "grid":

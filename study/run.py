@@ -240,6 +240,7 @@ def run_study(
     output = Path(output)
     _check_runnable(study, output)
     plans = plan(study)
+    adaptive = [p for p in plans if p.kind == "adaptive"]  # refinement waves (study.adaptive)
     work = WorkDir(output)
     if not work.lock():
         raise StudyError(
@@ -255,6 +256,8 @@ def run_study(
             stale += 1
         reused = reused_points = 0
         for p in plans:
+            if p.kind == "adaptive":
+                continue
             for c in p.chunks():
                 n_chunks += 1
                 if work.has(c.scene, c.key):
@@ -270,12 +273,20 @@ def run_study(
             file=stream,
         )
         compute_seconds = compute_wall = 0.0
-        if missing:
+        if adaptive:
+            from study.adaptive import missing_planes, run_adaptive
+
+            adaptive = [p for p in adaptive if missing_planes(p, work)]
+        if missing or adaptive:
             bar = Progress(n_points, reused_points, stream=stream, enabled=progress)
             with connect(client, scheduler, scheduler_file, workers, stream) as c:
                 bar.start()
                 t1 = time.perf_counter()
-                compute_seconds = _compute(c, plans, work, bar, retries, saved)
+                if missing:
+                    grid = [p for p in plans if p.kind != "adaptive"]
+                    compute_seconds = _compute(c, grid, work, bar, retries, saved)
+                for p in adaptive:
+                    run_adaptive(c, p, work, retries, stream, progress, saved, bar)
                 compute_wall = time.perf_counter() - t1
             bar.close()
         from study.netcdf import write_result

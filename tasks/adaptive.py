@@ -79,7 +79,7 @@ def _fill(dtype: str) -> object:
 
 
 def coarse_nodes(n: int, step: int) -> np.ndarray:
-    """Indices of the coarse lattice along an axis of ``n`` points: every ``step``-th and the last."""
+    """Indices of the coarse lattice along an axis of ``n`` points: every ``step``-th, the last."""
     return np.unique(np.append(np.arange(0, n, step), n - 1))
 
 
@@ -292,7 +292,8 @@ class Refinement:
     def accept_verification(
         self, idx: np.ndarray, results: Mapping[str, np.ndarray]
     ) -> VerificationSummary:
-        """Compare the sample's simulated regimes with the inferred ones; keep the simulated values."""
+        """Compare the sample's simulated regimes with the inferred ones; keep the simulated
+        values (the sample's points count as simulated from then on)."""
         idx = np.asarray(idx, dtype=np.int64).ravel()
         self._fill_inferred()
         ij = np.unravel_index(idx, self.shape)
@@ -432,6 +433,4 @@ def adaptive_map(
         res = classify_fn(scene, r[i], beta[j], fidelity=fidelity, **settings)
         return {k: np.asarray(getattr(res, k)) for k in FIELDS}
 
-    return refine(
-        (r.size, beta.size), batch, coarse_step, hint, verify_fraction, verify_min, seed
-    )
+    return refine((r.size, beta.size), batch, coarse_step, hint, verify_fraction, verify_min, seed)
