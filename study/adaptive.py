@@ -153,15 +153,15 @@ def run_adaptive(
         summary = ref.accept_verification(sample, simulate(sample) if sample.size else _empty())
         fields = ref.result()
         n_sim = int(fields["simulated"].sum())
-        if verbose:
-            print(
-                f"study: {spec.name}{list(sweep) if sweep else ''}: {n_sim:,} of "
-                f"{ref.n_points:,} points simulated ({100 * n_sim / ref.n_points:.2f} %, "
-                f"verification included) in {len(ref.levels)} waves, "
-                f"{time.perf_counter() - t0:.1f} s; point lists {counts[1]} computed, "
-                f"{counts[0]} reused; {summary.line()}",
-                file=stream,
-            )
+        # the plane's line with its verification estimate is always printed
+        print(
+            f"study: {spec.name}{list(sweep) if sweep else ''}: {n_sim:,} of "
+            f"{ref.n_points:,} points simulated ({100 * n_sim / ref.n_points:.2f} %, "
+            f"verification included) in {len(ref.levels)} waves, "
+            f"{time.perf_counter() - t0:.1f} s; point lists {counts[1]} computed, "
+            f"{counts[0]} reused; {summary.line()}",
+            file=stream,
+        )
         fields["levels"] = np.asarray(ref.levels, dtype=np.int64)
         fields["n_points"] = np.int64(ref.n_points)
         fields["verify_inferred"] = np.int64(summary.inferred)

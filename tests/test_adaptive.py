@@ -267,7 +267,9 @@ def test_adaptive_study_on_local_cluster_resumes_after_interruption(tmp_path, mo
     first = [
         line for line in log.getvalue().splitlines() if "sweep[0]:" in line and "reused" in line
     ]
-    assert first and int(first[0].split(" reused")[0].split()[-1]) == 3  # waves 1-3 from disk
+    assert len(first) == 1 and "verification: 200 of" in first[0]
+    reused = int(first[0].split(" reused")[0].split()[-1])
+    assert reused >= 3  # the point lists of waves 1-3 came from the work folder
 
     tree = xr.open_dataset(out)
     assert tree["regime"].dims == ("gamma", "r", "beta")
