@@ -68,6 +68,9 @@ ADAPTIVE_FIELDS: dict[str, tuple[str, str]] = {
 }
 VERIFY_NONE, VERIFY_AGREE, VERIFY_DISAGREE = 0, 1, 2
 
+#: Largest (leaves x new points) comparison done by broadcasting when leaves are rechecked.
+_BROADCAST_LIMIT = 200_000
+
 ClassifyBatch = Callable[[np.ndarray, np.ndarray], Mapping[str, np.ndarray]]
 """Classify points given by their (r index, beta index) arrays; return FIELDS arrays."""
 
@@ -170,10 +173,12 @@ class Refinement:
             for a, b in zip(er[:-1], er[1:], strict=True)
             for c, d in zip(eb[:-1], eb[1:], strict=True)
         ]
-        self._leaves: list[tuple[int, int, int, int]] = []
+        self._leaves = np.zeros((0, 4), dtype=np.int64)  # uniform cells (i0, i1, j0, j1)
+        self._leaves_new: list[tuple[int, int, int, int]] = []  # not yet in _leaves
         self._first = np.ravel_multi_index(np.meshgrid(ir, ib, indexing="ij"), self.shape).ravel()
-        self._last_new: np.ndarray | None = None
+        self._last_new: tuple[np.ndarray, np.ndarray] | None = None
         self._sample: np.ndarray | None = None
+        self._filled = False
 
     # ------------------------------------------------------------ waves
     @property
@@ -193,7 +198,7 @@ class Refinement:
             children: list[tuple[int, int, int, int]] = []
             for box in self._active:
                 if self._uniform(box) and not self._hinted(box):
-                    self._leaves.append(box)
+                    self._leaves_new.append(box)
                     continue
                 i0, i1, j0, j1 = box
                 if i1 - i0 <= 1 and j1 - j0 <= 1:
@@ -222,9 +227,8 @@ class Refinement:
             arr[ij] = np.asarray(results[name]).ravel()
         self.key[ij] = self._key_of(results, idx.size)
         self.simulated[ij] = True
-        new = np.zeros(self.shape, dtype=bool)
-        new[ij] = True
-        self._last_new = new
+        self._last_new = ij
+        self._filled = False
         self.levels.append(int(idx.size))
 
     def _key_of(self, results: Mapping[str, np.ndarray], n: int) -> np.ndarray:
@@ -251,23 +255,35 @@ class Refinement:
     def _reopen_leaves(self) -> None:
         """Leaves (uniform cells) that received new simulated points disagreeing with them are
         active again (a neighbour's refinement put points on their edges)."""
-        if self._last_new is None or not self._leaves:
+        boxes = self._leaf_boxes()
+        if self._last_new is None or not boxes.shape[0]:
             return
-        # summed-area table of the new points: which leaves hold any
-        s = np.zeros((self.shape[0] + 1, self.shape[1] + 1), dtype=np.int32)
-        s[1:, 1:] = self._last_new.cumsum(0, dtype=np.int32).cumsum(1, dtype=np.int32)
-        boxes = np.array(self._leaves, dtype=np.int64)
-        i0, i1, j0, j1 = boxes.T
-        count = s[i1 + 1, j1 + 1] - s[i0, j1 + 1] - s[i1 + 1, j0] + s[i0, j0]
-        hit = set(np.flatnonzero(count).tolist())
-        keep = []
-        for n, box in enumerate(self._leaves):
-            if n in hit and not self._uniform(box):
+        pi, pj = self._last_new
+        i0, i1, j0, j1 = (c[:, None] for c in boxes.T)
+        if boxes.shape[0] * pi.size <= _BROADCAST_LIMIT:  # few new points: compare directly
+            inside = (i0 <= pi) & (pi <= i1) & (j0 <= pj) & (pj <= j1)
+            count = inside.any(axis=1)
+        else:  # many: a summed-area table of the new points
+            s = np.zeros((self.shape[0] + 1, self.shape[1] + 1), dtype=np.int32)
+            s[1 + pi, 1 + pj] = 1
+            s = s.cumsum(0, dtype=np.int32).cumsum(1, dtype=np.int32)
+            i0, i1, j0, j1 = boxes.T
+            count = s[i1 + 1, j1 + 1] - s[i0, j1 + 1] - s[i1 + 1, j0] + s[i0, j0]
+        reopen = np.zeros(boxes.shape[0], dtype=bool)
+        for n in np.flatnonzero(count):
+            box = tuple(int(v) for v in boxes[n])
+            if not self._uniform(box):
                 self._active.append(box)
-            else:
-                keep.append(box)
-        self._leaves = keep
+                reopen[n] = True
+        self._leaves = boxes[~reopen]
         self._last_new = None
+
+    def _leaf_boxes(self) -> np.ndarray:
+        if self._leaves_new:
+            new = np.array(self._leaves_new, dtype=np.int64).reshape(-1, 4)
+            self._leaves = np.concatenate([self._leaves, new])
+            self._leaves_new = []
+        return self._leaves
 
     # ------------------------------------------------------------ verification
     def verification(
@@ -317,15 +333,16 @@ class Refinement:
     def _fill_inferred(self) -> None:
         """Give every point not simulated the fields of the nearest corner of its uniform cell."""
         todo = ~self.simulated
-        if not todo.any():
+        if self._filled or not todo.any():
             return
         src_i = np.full(self.shape, -1, dtype=np.int64)
         src_j = np.full(self.shape, -1, dtype=np.int64)
-        for i0, i1, j0, j1 in self._leaves:
-            ii = np.arange(i0, i1 + 1)[:, None]
-            jj = np.arange(j0, j1 + 1)[None, :]
-            src_i[i0 : i1 + 1, j0 : j1 + 1] = np.where(ii - i0 <= i1 - ii, i0, i1)
-            src_j[i0 : i1 + 1, j0 : j1 + 1] = np.where(jj - j0 <= j1 - jj, j0, j1)
+        for i0, i1, j0, j1 in self._leaf_boxes().tolist():  # the nearer corner along each axis
+            mi, mj = (i0 + i1) // 2 + 1, (j0 + j1) // 2 + 1
+            src_i[i0:mi, j0 : j1 + 1] = i0
+            src_i[mi : i1 + 1, j0 : j1 + 1] = i1
+            src_j[i0 : i1 + 1, j0:mj] = j0
+            src_j[i0 : i1 + 1, mj : j1 + 1] = j1
         dst = np.nonzero(todo)
         src = (src_i[dst], src_j[dst])
         if (src[0] < 0).any():  # cannot happen: uniform cells and unit cells tile the map
@@ -333,7 +350,7 @@ class Refinement:
         for arr in self.fields.values():
             arr[dst] = arr[src]
         self.key[dst] = self.key[src]
-        self.simulated[dst] = False
+        self._filled = True
 
     def result(self) -> dict[str, np.ndarray]:
         """Every field of :data:`tasks.result.FIELDS` at every point, plus ``simulated`` and
