@@ -32,6 +32,8 @@ from study.verify import simulator_version
 
 #: Bump when the meaning of a chunk changes, so old work folders are not reused.
 CHUNK_FORMAT = 2  # 2: design quantities (amplitude, dissipation, ...)
+#: Fraction of the points an adaptive scene is expected to simulate (planning only).
+ADAPTIVE_SIMULATED_FRACTION = 0.05
 
 
 @dataclass(frozen=True)
@@ -77,6 +79,11 @@ class ScenePlan:
         else:
             cols = min(len(spec.beta), target)
             block = (max(1, min(len(spec.r), target // cols)), cols)
+            if spec.mode == "adaptive":  # point lists of the refinement waves
+                target = study.chunk_points or chunk_target(
+                    spec.dof, study.fidelity, study.task_seconds, work // 20
+                )
+                block = (target, 1)
         return cls(spec, study.fidelity, study.settings.to_dict(), block)
 
     # ------------------------------------------------------------ axes
@@ -98,6 +105,9 @@ class ScenePlan:
     def n_chunks(self) -> int:
         rows, cols = self.block
         plane = self.spec.plane_shape
+        if self.kind == "adaptive":  # an estimate: the waves decide
+            simulated = ADAPTIVE_SIMULATED_FRACTION * self.spec.n_points
+            return max(1, math.ceil(simulated / rows))
         n_rows = math.ceil(plane[0] / rows)
         n_cols = math.ceil(plane[1] / cols) if self.kind == "grid" else 1
         return math.prod(self.spec.sweep_shape) * n_rows * n_cols
@@ -107,6 +117,8 @@ class ScenePlan:
         per = seconds_per_point(self.spec.dof, self.fidelity)
         if self.kind == "trace":
             per *= TRACE_POINTS_PER_R
+        elif self.kind == "adaptive":
+            per *= ADAPTIVE_SIMULATED_FRACTION
         return per * self.spec.n_points
 
     # ------------------------------------------------------------ chunks

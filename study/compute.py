@@ -20,8 +20,9 @@ def compute_chunk(task: dict) -> dict[str, np.ndarray]:
     Parameters
     ----------
     task : dict
-        From :meth:`study.chunks.ScenePlan.task`: ``kind`` ("grid", "points"
-        or "trace"), ``scene`` (``Scene.to_dict()``), ``settings`` (resolved
+        From :meth:`study.chunks.ScenePlan.task`: ``kind`` ("grid", "points",
+        "trace", or "adaptive": a point list of one refinement wave), ``scene``
+        (``Scene.to_dict()``), ``settings`` (resolved
         ``Settings.to_dict()``), and the coordinates ``r``, ``beta`` (and
         per-point ``gamma``, ``kappa`` for a point list).
 
@@ -41,6 +42,8 @@ def compute_chunk(task: dict) -> dict[str, np.ndarray]:
         )
     elif kind == "points":
         out = _classify_points(task)
+    elif kind == "adaptive":  # a point list of one refinement wave (study.adaptive)
+        out = _classify(task["scene"], task["settings"], task["r"], task["beta"])
     elif kind == "trace":
         from study.trace import trace_chunk
 
@@ -61,6 +64,8 @@ def _classify(scene: dict, settings: dict, r: np.ndarray, beta: np.ndarray) -> d
 def _classify_points(task: dict) -> dict:
     """A point list: group the points by their (gamma, kappa) and classify each group."""
     r, beta = task["r"], task["beta"]
+    if "gamma" not in task and "kappa" not in task:  # one scene (NaN != NaN in np.unique)
+        return _classify(task["scene"], task["settings"], r, beta)
     n = r.size
     gamma = task.get("gamma", np.full(n, np.nan))
     kappa = task.get("kappa", np.full(n, np.nan))

@@ -46,7 +46,9 @@ from tasks.scene import Scene
 DEFAULT_MAX_POINTS = 50_000_000
 #: Default target duration of one Dask task, in seconds (``[study] task_seconds``).
 DEFAULT_TASK_SECONDS = 0.5
-MODES = ("grid", "trace")
+MODES = ("grid", "trace", "adaptive")
+#: Closed-form hints an adaptive scene can refine around (``analysis.boundaries`` methods).
+ADAPTIVE_HINTS = ("exact", "paper", "none")
 SPACINGS = ("linear", "log")
 _NAME_RE = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.-]*$")
 
@@ -280,6 +282,12 @@ class SceneSpec:
     beta: Axis | None = None
     points: Points | None = None
     mode: str = "grid"
+    #: ``mode = "adaptive"`` only (:mod:`tasks.adaptive`): the coarsest spacing in grid
+    #: steps, the verification sample's fraction of the inferred points, and the
+    #: closed-form boundaries refined around.
+    coarse_step: int = 16
+    verify_fraction: float = 0.005
+    hint: str = "exact"
 
     # ------------------------------------------------------------ derived views
     @property
@@ -342,6 +350,10 @@ class SceneSpec:
             d["beta"] = self.beta.to_toml_value()
         if self.mode != "grid":
             d["mode"] = self.mode
+        if self.mode == "adaptive":
+            d["coarse_step"] = self.coarse_step
+            d["verify_fraction"] = self.verify_fraction
+            d["hint"] = self.hint
         return d
 
 
@@ -368,6 +380,23 @@ def _read_ratio(t: _Table, key: str, dof: int) -> float | tuple[float, ...] | Ax
     raise StudyError(path, f"must be a number, a list or a sweep table, got {_show(raw)}")
 
 
+def _read_adaptive(t: _Table, mode: str) -> dict[str, object]:
+    """The settings of ``mode = "adaptive"`` (refused with any other mode)."""
+    keys = ("coarse_step", "verify_fraction", "hint")
+    if mode != "adaptive":
+        for k in keys:
+            if t.has(k):
+                raise StudyError(t.at(k), f"applies to mode = 'adaptive' only (mode is {mode!r})")
+        return {}
+    out: dict[str, object] = {"coarse_step": t.integer("coarse_step", 16, minimum=1)}
+    fraction = t.number("verify_fraction", 0.005)
+    if not 0.0 <= fraction <= 1.0:
+        raise StudyError(t.at("verify_fraction"), f"must be in [0, 1], got {fraction:g}")
+    out["verify_fraction"] = fraction
+    out["hint"] = t.string("hint", "exact", ADAPTIVE_HINTS)
+    return out
+
+
 def _read_scene(raw: object, path: str) -> SceneSpec:
     t = _Table(raw, path)
     contact = t.string("contact")
@@ -376,6 +405,7 @@ def _read_scene(raw: object, path: str) -> SceneSpec:
     gamma = _read_ratio(t, "gamma", dof)
     kappa = _read_ratio(t, "kappa", dof)
     mode = t.string("mode", "grid", MODES)
+    adaptive = _read_adaptive(t, mode)
     name = t.get("name")
     if name is not None and (not isinstance(name, str) or not _NAME_RE.match(name)):
         raise StudyError(
@@ -392,9 +422,9 @@ def _read_scene(raw: object, path: str) -> SceneSpec:
                 t.at("points"),
                 f"give either r and beta grids or points, not both ({grid[0]} is also given)",
             )
-        if mode == "trace":
+        if mode in ("trace", "adaptive"):
             raise StudyError(
-                t.at("points"), "mode 'trace' traces boundaries along r: give r and beta axes"
+                t.at("points"), f"mode {mode!r} needs r and beta axes, not a point list"
             )
         points = _read_points(t.get("points"), t.at("points"), dof)
         for k, v in (("gamma", gamma), ("kappa", kappa)):
@@ -422,6 +452,7 @@ def _read_scene(raw: object, path: str) -> SceneSpec:
         beta=beta_axis,
         points=points,
         mode=mode,
+        **adaptive,
     )
     try:  # tasks.Scene checks contact, dof and contact_mass
         base = spec.base_scene

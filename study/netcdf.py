@@ -38,6 +38,7 @@ from study.definition import Study
 from study.store import TMP_SUFFIX, WorkDir, fsync_dir
 from study.trace import TRACE_FIELDS
 from tasks import regimes
+from tasks.adaptive import ADAPTIVE_FIELDS
 from tasks.result import COORD_ATTRS, FIELDS, MASS_FIELDS, field_attrs
 
 #: Closed-form methods stored for every scene (``analysis.boundaries``).
@@ -192,7 +193,10 @@ def _data_layout(plan: ScenePlan) -> tuple[tuple[str, ...], tuple[int, ...], dic
         )
     dims = (*sweeps, "beta", "r")
     shape = (*spec.sweep_shape, len(spec.beta), len(spec.r))
-    return dims, shape, {k: dt for k, (dt, _) in FIELDS.items()}
+    variables = {k: dt for k, (dt, _) in FIELDS.items()}
+    if plan.kind == "adaptive":  # a grid plus `simulated` and `verification`
+        variables |= {k: dt for k, (dt, _) in ADAPTIVE_FIELDS.items()}
+    return dims, shape, variables
 
 
 def _var_layout(
@@ -250,6 +254,20 @@ TRACE_FLAGS = {
 def _attrs(name: str) -> dict[str, object]:
     if name in FIELDS:
         return field_attrs(name)
+    if name == "simulated":
+        return {
+            "long_name": "point simulated",
+            "comment": ADAPTIVE_FIELDS[name][1],
+            "flag_values": np.array([0, 1], dtype=np.int8),
+            "flag_meanings": "inferred simulated",
+        }
+    if name == "verification":
+        return {
+            "long_name": "verification sample",
+            "comment": ADAPTIVE_FIELDS[name][1],
+            "flag_values": np.array([0, 1, 2], dtype=np.int8),
+            "flag_meanings": "not_sampled confirmed contradicted",
+        }
     attrs: dict[str, object] = {"long_name": TRACE_FIELDS[name][1]}
     attrs.update(TRACE_FLAGS.get(name, {"units": "1"}))
     return attrs
@@ -274,7 +292,7 @@ def scene_dataset(plan: ScenePlan, study: Study) -> tuple[xr.Dataset, dict[str, 
     spec = plan.spec
     axes = plan.axes()
     dims, shape, variables = _data_layout(plan)
-    grid = plan.kind == "grid"
+    grid = plan.kind in ("grid", "adaptive")
     coords: dict[str, xr.Variable] = {}
     if plan.kind == "points":
         coords["point"] = xr.Variable("point", np.arange(len(spec.points)), COORD_ATTRS["point"])
@@ -414,6 +432,11 @@ def _fill_chunks(path: Path, plans: list[ScenePlan], work: WorkDir, grouped: boo
         nc.set_auto_maskandscale(False)
         for plan in plans:
             group = nc.groups[plan.spec.name] if grouped else nc
+            if plan.kind == "adaptive":
+                from study.adaptive import fill_adaptive
+
+                fill_adaptive(group, plan, work, _data_layout(plan)[2])
+                continue
             for chunk in plan.chunks():
                 arrays = work.load(plan.spec.name, chunk.key)
                 for name, index, values in chunk_writes(plan, chunk, arrays):
@@ -432,10 +455,19 @@ def result_tree(study: Study, plans: list[ScenePlan], work) -> xr.DataTree:
         ds, _ = scene_dataset(plan, study)
         _, _, variables = _data_layout(plan)
         filled = {name: np.array(ds[name].data.compute()) for name in variables}  # own memory
-        for chunk in plan.chunks():
-            arrays = work.load(plan.spec.name, chunk.key)
-            for name, index, values in chunk_writes(plan, chunk, arrays):
-                filled[name][index] = values
+        if plan.kind == "adaptive":
+            from study.adaptive import plane_writes, result_attrs
+
+            for name, index, values in plane_writes(plan, work, variables):
+                if name is None:
+                    ds = ds.assign_attrs(result_attrs(plan, values))
+                else:
+                    filled[name][index] = values
+        else:
+            for chunk in plan.chunks():
+                arrays = work.load(plan.spec.name, chunk.key)
+                for name, index, values in chunk_writes(plan, chunk, arrays):
+                    filled[name][index] = values
         ds = ds.assign({name: ds[name].copy(data=filled[name]) for name in variables})
         built[plan.spec.name] = ds
     gattrs = global_attrs(study)

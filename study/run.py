@@ -280,6 +280,7 @@ def run_study(
     in_memory = output is None
     check_run(output, client, scheduler, scheduler_file, workers, retries, worker_timeout)
     plans = plan(study)
+    adaptive = [p for p in plans if p.kind == "adaptive"]  # refinement waves (study.adaptive)
     if in_memory:
         from study.memory import MemoryWork
 
@@ -302,6 +303,8 @@ def run_study(
             stale += 1
         reused = reused_points = discarded = 0
         for p in plans:
+            if p.kind == "adaptive":
+                continue
             for c in p.chunks():
                 n_chunks += 1
                 if work.has(c.scene, c.key):
@@ -323,7 +326,11 @@ def run_study(
             file=stream,
         )
         compute_seconds = compute_wall = 0.0
-        if missing:
+        if adaptive:
+            from study.adaptive import missing_planes, run_adaptive
+
+            adaptive = [p for p in adaptive if missing_planes(p, work)]
+        if missing or adaptive:
             bar = Progress(n_points, reused_points, stream=stream, enabled=progress)
             bar.tracker = cost_tracker(plans, work)  # learns each scene's cost (study.cost)
             bar.eta_seconds = bar.tracker.eta
@@ -340,7 +347,11 @@ def run_study(
                     where=str(work.path),
                     stream=stream,
                 )
-                compute_seconds = _compute(c, plans, work, bar, retries, saved, watchdog=dog)
+                if missing:
+                    grid = [p for p in plans if p.kind != "adaptive"]
+                    compute_seconds = _compute(c, grid, work, bar, retries, saved, watchdog=dog)
+                for p in adaptive:
+                    run_adaptive(c, p, work, retries, stream, progress, saved, bar)
                 compute_wall = time.perf_counter() - t1
             bar.close()
         from study.netcdf import result_tree, write_result

@@ -25,7 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
-from tasks.result import MASS_FIELDS
+from tasks.adaptive import ADAPTIVE_FIELDS
+from tasks.result import FIELDS, MASS_FIELDS
 
 #: Metadata entries of a chunk file (not result arrays).
 META = ("_key", "_version", "_shape", "_checksum")
@@ -61,7 +62,7 @@ def data_shape(arrays: dict[str, np.ndarray]) -> tuple[int, ...]:
     shapes = {
         np.shape(v)[:-1] if k in MASS_FIELDS else np.shape(v)
         for k, v in arrays.items()
-        if k not in META and np.ndim(v) > 0
+        if k in FIELDS or k in ADAPTIVE_FIELDS  # not bookkeeping (an adaptive plane's levels)
     }
     if len(shapes) != 1:
         raise ValueError(f"chunk arrays of different shapes: {sorted(shapes)}")

@@ -1,0 +1,468 @@
+"""Adaptive regime maps: a dense grid's labels from a few percent of its simulations.
+
+A regime map is three regions and the curves between them; a dense (r, beta)
+grid spends almost all of its simulations deep inside the regions. The
+refinement here simulates a coarse lattice of the grid (every ``coarse_step``
+grid steps along r and beta), then splits every cell whose simulated points
+disagree (a different regime, or a different flag: an undetermined code, not
+converged) into up to four halves, level by level, down to cells of one grid
+step. A cell whose simulated points all agree is *uniform*: its other points
+inherit the label and every other field from the nearest simulated corner and
+are marked ``simulated = False``.
+
+Guarantees (in grid steps of the requested resolution):
+
+* a boundary between two simulated neighbours is always resolved to one grid
+  step: refinement stops only at cells of one step or at uniform cells;
+* a region of one label (or flag) that contains a square of ``coarse_step`` x
+  ``coarse_step`` grid steps contains a coarse node, so it is sure to be found,
+  and its boundary is then followed cell by cell down to one step. ``coarse_step``
+  is therefore the size of the smallest feature the map is sure to find;
+* what can be missed: a feature that touches no simulated point, i.e. narrower
+  than the cells around it (a strip or island thinner than ``coarse_step`` lying
+  between coarse nodes, or a bump of a boundary narrower than the local cell).
+  Closed-form boundaries can be passed as a ``hint`` (points to refine around:
+  cells containing a hinted point are split down to one step) but never decide
+  a label. The verification sample (:meth:`Refinement.verification`) estimates
+  the error of the inferred labels.
+
+The logic is pure numerics: the classification of a batch of points is injected
+(:func:`refine`), or the caller drives the waves itself (:class:`Refinement`:
+:meth:`~Refinement.wave` gives the points of the next level, the caller
+simulates them, e.g. as a wave of Dask tasks, and hands the results to
+:meth:`~Refinement.accept`). No Dask, no files.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from tasks import regimes
+from tasks.result import FIELDS, field_shape
+
+#: Default coarsest spacing, in grid steps: the smallest feature the map is sure to find.
+DEFAULT_COARSE_STEP = 16
+#: Default verification sample: this fraction of the inferred points ...
+DEFAULT_VERIFY_FRACTION = 0.005
+#: ... but at least this many (or all the inferred points if there are fewer).
+DEFAULT_VERIFY_MIN = 200
+#: Fields whose values must agree for a cell to be uniform (the label and its flags);
+#: any of them missing from the results is skipped.
+KEY_FIELDS: tuple[str, ...] = ("regime", "converged", "start_dependent")
+
+#: Variables an adaptive map adds to those of a grid (:data:`tasks.result.FIELDS`).
+ADAPTIVE_FIELDS: dict[str, tuple[str, str]] = {
+    "simulated": (
+        "bool",
+        "the point was simulated (true) or inferred from the nearest simulated corner of "
+        "a uniform refinement cell (false)",
+    ),
+    "verification": (
+        "int8",
+        "verification sample: 0 not in the sample, 1 inferred label confirmed by "
+        "simulation, 2 inferred label contradicted (the simulated values are stored)",
+    ),
+}
+VERIFY_NONE, VERIFY_AGREE, VERIFY_DISAGREE = 0, 1, 2
+
+#: Largest (leaves x new points) comparison done by broadcasting when leaves are rechecked.
+_BROADCAST_LIMIT = 200_000
+
+ClassifyBatch = Callable[[np.ndarray, np.ndarray], Mapping[str, np.ndarray]]
+"""Classify points given by their (r index, beta index) arrays; return FIELDS arrays."""
+
+
+def _fill(dtype: str) -> object:
+    if dtype == "int8":
+        return regimes.NOT_COMPUTED
+    return np.nan if dtype.startswith("float") else 0
+
+
+def coarse_nodes(n: int, step: int) -> np.ndarray:
+    """Indices of the coarse lattice along an axis of ``n`` points: every ``step``-th, the last."""
+    return np.unique(np.append(np.arange(0, n, step), n - 1))
+
+
+@dataclass
+class VerificationSummary:
+    """Agreement of inferred labels with simulation on a seeded random sample."""
+
+    inferred: int  #: points inferred (before the sample was simulated)
+    sampled: int  #: inferred points simulated for the check
+    agree: int  #: of which the inferred regime equals the simulated one
+    upper_95: float  #: one-sided 95 % upper bound on the disagreement rate (Clopper-Pearson)
+
+    @property
+    def agreement(self) -> float:
+        return self.agree / self.sampled if self.sampled else float("nan")
+
+    def line(self) -> str:
+        if not self.sampled:
+            return "verification: no inferred points"
+        return (
+            f"verification: {self.sampled:,} of {self.inferred:,} inferred points simulated, "
+            f"{self.agree:,} agree ({100 * self.agreement:.2f} %; disagreement below "
+            f"{100 * self.upper_95:.2f} % at 95 % confidence)"
+        )
+
+
+def disagreement_upper_bound(sampled: int, wrong: int, confidence: float = 0.95) -> float:
+    """One-sided Clopper-Pearson upper bound on a rate with ``wrong`` of ``sampled``."""
+    if sampled == 0:
+        return 1.0
+    if wrong >= sampled:
+        return 1.0
+    from scipy.special import betaincinv
+
+    return float(betaincinv(wrong + 1, sampled - wrong, confidence))
+
+
+class Refinement:
+    """The state of one adaptive map of shape ``(n_r, n_beta)``, level by level.
+
+    Parameters
+    ----------
+    shape : (int, int)
+        Points along r and along beta of the requested resolution.
+    coarse_step : int
+        Spacing of the first lattice in grid steps (>= 1; 1 simulates everything).
+    hint : bool array of ``shape``, optional
+        Points near an expected boundary (e.g. the closed forms): a cell holding
+        one is split even when uniform. Never decides a label.
+    key_fields : sequence of str
+        Fields that must agree within a uniform cell.
+
+    Use: ``while (idx := ref.wave()).size: ref.accept(idx, simulate(idx))``,
+    then optionally ``ref.verification()`` / ``ref.accept_verification``, then
+    :meth:`result`. Indices are flat (``numpy.ravel_multi_index`` of (i_r, i_beta)).
+    """
+
+    def __init__(
+        self,
+        shape: tuple[int, int],
+        coarse_step: int = DEFAULT_COARSE_STEP,
+        hint: np.ndarray | None = None,
+        key_fields: tuple[str, ...] = KEY_FIELDS,
+        dof: int = 1,
+    ) -> None:
+        n_r, n_b = (int(n) for n in shape)
+        if n_r < 1 or n_b < 1:
+            raise ValueError(f"shape: needs at least one point along r and beta, got {shape}")
+        if not isinstance(coarse_step, int | np.integer) or coarse_step < 1:
+            raise ValueError(f"coarse_step: must be an integer >= 1, got {coarse_step!r}")
+        self.shape = (n_r, n_b)
+        self.coarse_step = int(coarse_step)
+        self.hint = None if hint is None else np.asarray(hint, dtype=bool)
+        if self.hint is not None and self.hint.shape != self.shape:
+            raise ValueError(f"hint: shape {self.hint.shape} differs from the map's {self.shape}")
+        self.key_fields = tuple(key_fields)
+        self.fields = {
+            k: np.full(field_shape(k, self.shape, dof), _fill(dt), dtype=dt)
+            for k, (dt, _) in FIELDS.items()
+        }  # per-mass fields have a trailing mass axis
+        self.simulated = np.zeros(self.shape, dtype=bool)
+        self.key = np.zeros(self.shape, dtype=np.int64)
+        self.verification_flag = np.zeros(self.shape, dtype=np.int8)
+        self.levels: list[int] = []  # points simulated per wave
+        ir = coarse_nodes(n_r, self.coarse_step)
+        ib = coarse_nodes(n_b, self.coarse_step)
+        # cells between consecutive nodes; a single point along an axis is a cell of width 0
+        er = ir if n_r > 1 else np.array([0, 0])
+        eb = ib if n_b > 1 else np.array([0, 0])
+        self._active = [
+            (int(a), int(b), int(c), int(d))
+            for a, b in zip(er[:-1], er[1:], strict=True)
+            for c, d in zip(eb[:-1], eb[1:], strict=True)
+        ]
+        self._leaves = np.zeros((0, 4), dtype=np.int64)  # uniform cells (i0, i1, j0, j1)
+        self._leaves_new: list[tuple[int, int, int, int]] = []  # not yet in _leaves
+        self._first = np.ravel_multi_index(np.meshgrid(ir, ib, indexing="ij"), self.shape).ravel()
+        self._last_new: tuple[np.ndarray, np.ndarray] | None = None
+        self._sample: np.ndarray | None = None
+        self._filled = False
+
+    # ------------------------------------------------------------ waves
+    @property
+    def n_points(self) -> int:
+        return self.shape[0] * self.shape[1]
+
+    def wave(self) -> np.ndarray:
+        """Flat indices of the points to simulate next (sorted); empty when refinement is done."""
+        if self._first is not None:
+            first, self._first = np.sort(self._first), None
+            return first
+        while True:
+            self._reopen_leaves()
+            if not self._active:
+                return np.zeros(0, dtype=np.int64)
+            new: list[tuple[int, int]] = []
+            children: list[tuple[int, int, int, int]] = []
+            for box in self._active:
+                if self._uniform(box) and not self._hinted(box):
+                    self._leaves_new.append(box)
+                    continue
+                i0, i1, j0, j1 = box
+                if i1 - i0 <= 1 and j1 - j0 <= 1:
+                    continue  # every point of the cell is a simulated corner
+                im = (i0 + i1) // 2 if i1 - i0 > 1 else None
+                jm = (j0 + j1) // 2 if j1 - j0 > 1 else None
+                rs = [(i0, im), (im, i1)] if im is not None else [(i0, i1)]
+                bs = [(j0, jm), (jm, j1)] if jm is not None else [(j0, j1)]
+                for a, b in rs:
+                    for c, d in bs:
+                        children.append((a, b, c, d))
+                        for p in ((a, c), (a, d), (b, c), (b, d)):
+                            if not self.simulated[p]:
+                                new.append(p)
+            self._active = children
+            self._last_new = None
+            if new:
+                idx = np.unique(np.ravel_multi_index(tuple(np.array(new).T), self.shape))
+                return idx.astype(np.int64)
+
+    def accept(self, idx: np.ndarray, results: Mapping[str, np.ndarray]) -> None:
+        """Store the simulated fields of the points ``idx`` (flat indices)."""
+        idx = np.asarray(idx, dtype=np.int64).ravel()
+        ij = np.unravel_index(idx, self.shape)
+        for name, arr in self.fields.items():
+            arr[ij] = np.asarray(results[name]).reshape(idx.size, *arr.shape[2:])
+        self.key[ij] = self._key_of(results, idx.size)
+        self.simulated[ij] = True
+        self._last_new = ij
+        self._filled = False
+        self.levels.append(int(idx.size))
+
+    def _key_of(self, results: Mapping[str, np.ndarray], n: int) -> np.ndarray:
+        key = np.zeros(n, dtype=np.int64)
+        for name in self.key_fields:
+            if name in results:
+                key = key * 1024 + (np.asarray(results[name]).ravel().astype(np.int64) + 512)
+        return key
+
+    def _uniform(self, box: tuple[int, int, int, int]) -> bool:
+        i0, i1, j0, j1 = box
+        sl = (slice(i0, i1 + 1), slice(j0, j1 + 1))
+        keys = self.key[sl][self.simulated[sl]]
+        return bool(keys.size == 0 or (keys == keys[0]).all())
+
+    def _hinted(self, box: tuple[int, int, int, int]) -> bool:
+        if self.hint is None:
+            return False
+        i0, i1, j0, j1 = box
+        if i1 - i0 <= 1 and j1 - j0 <= 1:
+            return False
+        return bool(self.hint[i0 : i1 + 1, j0 : j1 + 1].any())
+
+    def _reopen_leaves(self) -> None:
+        """Leaves (uniform cells) that received new simulated points disagreeing with them are
+        active again (a neighbour's refinement put points on their edges)."""
+        boxes = self._leaf_boxes()
+        if self._last_new is None or not boxes.shape[0]:
+            return
+        pi, pj = self._last_new
+        i0, i1, j0, j1 = (c[:, None] for c in boxes.T)
+        if boxes.shape[0] * pi.size <= _BROADCAST_LIMIT:  # few new points: compare directly
+            inside = (i0 <= pi) & (pi <= i1) & (j0 <= pj) & (pj <= j1)
+            count = inside.any(axis=1)
+        else:  # many: a summed-area table of the new points
+            s = np.zeros((self.shape[0] + 1, self.shape[1] + 1), dtype=np.int32)
+            s[1 + pi, 1 + pj] = 1
+            s = s.cumsum(0, dtype=np.int32).cumsum(1, dtype=np.int32)
+            i0, i1, j0, j1 = boxes.T
+            count = s[i1 + 1, j1 + 1] - s[i0, j1 + 1] - s[i1 + 1, j0] + s[i0, j0]
+        reopen = np.zeros(boxes.shape[0], dtype=bool)
+        for n in np.flatnonzero(count):
+            box = tuple(int(v) for v in boxes[n])
+            if not self._uniform(box):
+                self._active.append(box)
+                reopen[n] = True
+        self._leaves = boxes[~reopen]
+        self._last_new = None
+
+    def _leaf_boxes(self) -> np.ndarray:
+        if self._leaves_new:
+            new = np.array(self._leaves_new, dtype=np.int64).reshape(-1, 4)
+            self._leaves = np.concatenate([self._leaves, new])
+            self._leaves_new = []
+        return self._leaves
+
+    # ------------------------------------------------------------ verification
+    def verification(
+        self,
+        fraction: float = DEFAULT_VERIFY_FRACTION,
+        minimum: int = DEFAULT_VERIFY_MIN,
+        seed: int = 0,
+    ) -> np.ndarray:
+        """A seeded random sample of inferred points (flat indices) to simulate as a check.
+
+        Call after refinement is done (:meth:`wave` returned nothing). The
+        sample holds ``max(minimum, round(fraction * inferred))`` points, at most
+        all of the inferred ones.
+        """
+        inferred = np.flatnonzero(~self.simulated.ravel())
+        n = min(inferred.size, max(int(minimum), int(round(fraction * inferred.size))))
+        rng = np.random.default_rng(seed)
+        self._sample = np.sort(rng.choice(inferred, size=n, replace=False)).astype(np.int64)
+        self._inferred_before = int(inferred.size)
+        return self._sample
+
+    def accept_verification(
+        self, idx: np.ndarray, results: Mapping[str, np.ndarray]
+    ) -> VerificationSummary:
+        """Compare the sample's simulated regimes with the inferred ones; keep the simulated
+        values (the sample's points count as simulated from then on)."""
+        idx = np.asarray(idx, dtype=np.int64).ravel()
+        self._fill_inferred()
+        ij = np.unravel_index(idx, self.shape)
+        inferred = self.fields["regime"][ij].copy()
+        simulated = np.asarray(results["regime"]).ravel()
+        agree = inferred == simulated
+        for name, arr in self.fields.items():
+            arr[ij] = np.asarray(results[name]).reshape(idx.size, *arr.shape[2:])
+        self.key[ij] = self._key_of(results, idx.size)
+        self.simulated[ij] = True
+        self.verification_flag[ij] = np.where(agree, VERIFY_AGREE, VERIFY_DISAGREE)
+        n_agree = int(agree.sum())
+        return VerificationSummary(
+            inferred=getattr(self, "_inferred_before", int(idx.size)),
+            sampled=int(idx.size),
+            agree=n_agree,
+            upper_95=disagreement_upper_bound(int(idx.size), int(idx.size) - n_agree),
+        )
+
+    # ------------------------------------------------------------ result
+    def _fill_inferred(self) -> None:
+        """Give every point not simulated the fields of the nearest corner of its uniform cell."""
+        todo = ~self.simulated
+        if self._filled or not todo.any():
+            return
+        src_i = np.full(self.shape, -1, dtype=np.int64)
+        src_j = np.full(self.shape, -1, dtype=np.int64)
+        for i0, i1, j0, j1 in self._leaf_boxes().tolist():  # the nearer corner along each axis
+            mi, mj = (i0 + i1) // 2 + 1, (j0 + j1) // 2 + 1
+            src_i[i0:mi, j0 : j1 + 1] = i0
+            src_i[mi : i1 + 1, j0 : j1 + 1] = i1
+            src_j[i0 : i1 + 1, j0:mj] = j0
+            src_j[i0 : i1 + 1, mj : j1 + 1] = j1
+        dst = np.nonzero(todo)
+        src = (src_i[dst], src_j[dst])
+        if (src[0] < 0).any():  # cannot happen: uniform cells and unit cells tile the map
+            raise RuntimeError("adaptive map: a point lies in no refinement cell")
+        for arr in self.fields.values():
+            arr[dst] = arr[src]
+        self.key[dst] = self.key[src]
+        self._filled = True
+
+    def result(self) -> dict[str, np.ndarray]:
+        """Every field of :data:`tasks.result.FIELDS` at every point, plus ``simulated`` and
+        ``verification`` (:data:`ADAPTIVE_FIELDS`)."""
+        self._fill_inferred()
+        out = dict(self.fields)
+        out["simulated"] = self.simulated.copy()
+        out["verification"] = self.verification_flag.copy()
+        return out
+
+
+@dataclass
+class AdaptiveResult:
+    """An adaptive map: ``fields`` as a dense grid would give them, plus bookkeeping."""
+
+    fields: dict[str, np.ndarray]  #: FIELDS + ``simulated`` + ``verification``, shape (n_r, n_beta)
+    levels: list[int]  #: points simulated per refinement wave
+    verification: VerificationSummary | None
+
+    @property
+    def simulated_points(self) -> int:
+        """Points simulated, the verification sample included."""
+        return int(self.fields["simulated"].sum())
+
+    @property
+    def simulated_fraction(self) -> float:
+        return self.simulated_points / self.fields["simulated"].size
+
+
+def refine(
+    shape: tuple[int, int],
+    classify_batch: ClassifyBatch,
+    coarse_step: int = DEFAULT_COARSE_STEP,
+    hint: np.ndarray | None = None,
+    verify_fraction: float = DEFAULT_VERIFY_FRACTION,
+    verify_min: int = DEFAULT_VERIFY_MIN,
+    seed: int = 0,
+    key_fields: tuple[str, ...] = KEY_FIELDS,
+    dof: int = 1,
+) -> AdaptiveResult:
+    """Run a whole :class:`Refinement` with an injected batch classifier.
+
+    ``classify_batch(i_r, i_beta)`` gets integer index arrays and returns one
+    array per field of :data:`tasks.result.FIELDS` (per-mass fields with a
+    trailing axis of ``dof`` masses). ``verify_fraction = 0`` and
+    ``verify_min = 0`` skip the verification sample.
+    """
+    ref = Refinement(shape, coarse_step, hint, key_fields, dof)
+    while (idx := ref.wave()).size:
+        ref.accept(idx, classify_batch(*np.unravel_index(idx, ref.shape)))
+    summary = None
+    if verify_fraction > 0 or verify_min > 0:
+        sample = ref.verification(verify_fraction, verify_min, seed)
+        if sample.size:
+            res = classify_batch(*np.unravel_index(sample, ref.shape))
+        else:
+            res = {k: np.zeros(0, dtype=dt) for k, (dt, _) in FIELDS.items()}
+        summary = ref.accept_verification(sample, res)
+    return AdaptiveResult(ref.result(), ref.levels, summary)
+
+
+def adaptive_map(
+    scene,
+    r: np.ndarray,
+    beta: np.ndarray,
+    coarse_step: int = DEFAULT_COARSE_STEP,
+    hint: np.ndarray | None = None,
+    verify_fraction: float = DEFAULT_VERIFY_FRACTION,
+    verify_min: int = DEFAULT_VERIFY_MIN,
+    seed: int = 0,
+    classify_fn: Callable | None = None,
+    fidelity: str = "balanced",
+    **settings: object,
+) -> AdaptiveResult:
+    """The regime map of ``scene`` on the grid ``r`` x ``beta``, simulated adaptively.
+
+    Parameters
+    ----------
+    scene : tasks.Scene
+    r, beta : 1-D arrays
+        The axes of the requested grid (the result has shape ``(r.size, beta.size)``).
+    coarse_step : int
+        Spacing of the first lattice, in grid steps: the smallest feature the
+        map is sure to find (see the module notes).
+    hint : bool array, optional
+        Points near expected boundaries, e.g. ``analysis.adaptive.closed_form_hint``.
+    verify_fraction, verify_min, seed
+        The verification sample of inferred points.
+    classify_fn : callable, optional
+        ``classify_fn(scene, r, beta, fidelity=..., **settings)`` returning an
+        object with the FIELDS as attributes; default :func:`tasks.classify`.
+    """
+    if classify_fn is None:
+        from tasks.classifier import classify as classify_fn
+    r = np.asarray(r, dtype=float)
+    beta = np.asarray(beta, dtype=float)
+
+    def batch(i: np.ndarray, j: np.ndarray) -> dict[str, np.ndarray]:
+        res = classify_fn(scene, r[i], beta[j], fidelity=fidelity, **settings)
+        return {k: np.asarray(getattr(res, k)) for k in FIELDS}
+
+    return refine(
+        (r.size, beta.size),
+        batch,
+        coarse_step,
+        hint,
+        verify_fraction,
+        verify_min,
+        seed,
+        dof=scene.dof,
+    )

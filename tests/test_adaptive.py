@@ -1,0 +1,297 @@
+"""Adaptive maps (tasks.adaptive, analysis.adaptive, study mode = "adaptive").
+
+* synthetic labellings with known regions (a disc, a thin strip, islands larger
+  and smaller than the coarse spacing, an undetermined patch): the refined map
+  equals the true labels where the module's guarantee says it must, every pair
+  of differently labelled neighbours is simulated (boundaries resolved to one
+  grid step), and the verification sample measures the true error;
+* a small real scene against a dense ``tasks.classify``;
+* a study with ``mode = "adaptive"`` on a real LocalCluster (processes,
+  127.0.0.1), interrupted after a few waves and resumed, opened with xarray
+  and compared with the in-process refinement and with ``tasks.classify``.
+"""
+
+from __future__ import annotations
+
+import io
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from analysis.adaptive import adaptive_map, closed_form_hint, curve_hint
+from study import Study
+from study.errors import StudyError, StudyInterrupted
+from tasks import Scene, classify, regimes
+from tasks.adaptive import Refinement, coarse_nodes, refine
+from tasks.result import FIELDS
+
+N_R, N_B = 256, 128
+
+
+def synthetic(label_fn):
+    """A batch classifier from a labelling function of (i_r, i_beta) -> regime code."""
+
+    def batch(i, j):
+        out = {k: np.zeros(i.size, dtype=dt) for k, (dt, _) in FIELDS.items()}
+        out["regime"] = label_fn(i, j).astype(np.int8)
+        out["converged"] = out["regime"] >= 0
+        out["slip_amplitude"] = i + 1000.0 * j  # identifies the point a value came from
+        return out
+
+    return batch
+
+
+def truth(label_fn, shape=(N_R, N_B)):
+    i, j = np.meshgrid(np.arange(shape[0]), np.arange(shape[1]), indexing="ij")
+    return label_fn(i, j).astype(np.int8)
+
+
+def map_with_features(i, j):
+    """Continuous below a wavy curve, no motion above a sloped line, a disc and a thin strip."""
+    x, y = i / N_R, j / N_B
+    lab = np.where(y < 0.3 + 0.15 * np.sin(5 * x), regimes.CONTINUOUS, regimes.STICK_SLIP)
+    lab = np.where(y > 0.85 - 0.1 * x, regimes.NO_MOTION, lab)
+    lab = np.where((i - 60) ** 2 + (j - 80) ** 2 < 15**2, regimes.NO_MOTION, lab)  # disc
+    return np.where((i >= 150) & (i <= 152) & (j > 30), regimes.NO_MOTION, lab)  # strip, 3 wide
+
+
+def assert_boundaries_simulated(simulated, labels):
+    """Every pair of horizontal or vertical neighbours with different labels is simulated."""
+    for axis in (0, 1):
+        a = [slice(None), slice(None)]
+        b = [slice(None), slice(None)]
+        a[axis], b[axis] = slice(None, -1), slice(1, None)
+        differ = labels[tuple(a)] != labels[tuple(b)]
+        assert simulated[tuple(a)][differ].all() and simulated[tuple(b)][differ].all()
+
+
+def test_map_with_disc_and_strip_equals_truth_and_is_cheap():
+    expected = truth(map_with_features)
+    res = refine((N_R, N_B), synthetic(map_with_features), coarse_step=16)
+    np.testing.assert_array_equal(res.fields["regime"], expected)
+    assert_boundaries_simulated(res.fields["simulated"], expected)
+    assert res.fields["converged"].all()
+    assert res.simulated_fraction < 0.2  # 256 x 128 with ~1000 boundary points
+    v = res.verification
+    assert v.sampled == 200 and v.agree == 200
+    # inferred points copy the nearest simulated corner: the value names a simulated point
+    src = res.fields["slip_amplitude"][~res.fields["simulated"]]
+    si, sj = (src % 1000).astype(int), (src // 1000).astype(int)
+    assert res.fields["simulated"][si, sj].all()
+    assert (expected[si, sj] == res.fields["regime"][~res.fields["simulated"]]).all()
+
+
+@pytest.mark.parametrize("step", [4, 8, 16])
+def test_islands_of_the_coarse_spacing_are_always_found(step):
+    """The guarantee: a region containing a step x step square is found, wherever it lies."""
+    rng = np.random.default_rng(step)
+    for _ in range(12):
+        i0, j0 = rng.integers(1, N_R - step - 2), rng.integers(1, N_B - step - 2)
+
+        def island(i, j, i0=i0, j0=j0):
+            inside = (i >= i0) & (i <= i0 + step) & (j >= j0) & (j <= j0 + step)
+            return np.where(inside, regimes.NO_MOTION, regimes.CONTINUOUS)
+
+        res = refine(
+            (N_R, N_B), synthetic(island), coarse_step=step, verify_min=0, verify_fraction=0
+        )
+        np.testing.assert_array_equal(res.fields["regime"], truth(island))
+
+
+def test_island_smaller_than_the_spacing_needs_a_hint():
+    """Narrower than the coarse spacing and between nodes: missed, as documented; a hint over
+    it (as the closed forms give) makes refinement find it and resolve it exactly."""
+    nodes = coarse_nodes(N_R, 16)
+    i0 = int(nodes[3]) + 5  # between coarse nodes along r and beta
+
+    def island(i, j):
+        inside = (i >= i0) & (i <= i0 + 4) & (j >= 37) & (j <= 41)
+        return np.where(inside, regimes.NO_MOTION, regimes.CONTINUOUS)
+
+    plain = refine((N_R, N_B), synthetic(island), coarse_step=16, verify_min=0, verify_fraction=0)
+    assert (plain.fields["regime"] == regimes.CONTINUOUS).all()  # missed: no simulated point on it
+    hint = np.zeros((N_R, N_B), dtype=bool)
+    hint[i0 + 2, 39] = True
+    hinted = refine((N_R, N_B), synthetic(island), 16, hint, verify_min=0, verify_fraction=0)
+    np.testing.assert_array_equal(hinted.fields["regime"], truth(island))
+
+
+def test_undetermined_points_are_refined_and_never_given_a_regime():
+    def lab(i, j):
+        out = np.where(j < 64, regimes.CONTINUOUS, regimes.STICK_SLIP)
+        return np.where((i > 100) & (i < 140) & (j > 90), regimes.NOT_CONVERGED, out)
+
+    res = refine((N_R, N_B), synthetic(lab), coarse_step=16)
+    np.testing.assert_array_equal(res.fields["regime"], truth(lab))
+    assert_boundaries_simulated(res.fields["simulated"], truth(lab))
+    np.testing.assert_array_equal(res.fields["converged"], truth(lab) >= 0)
+
+
+def test_verification_sample_measures_the_true_error():
+    """With every inferred point in the sample, the measured agreement is the true one."""
+    nodes = coarse_nodes(N_R, 16)
+    i0 = int(nodes[5]) + 4
+
+    def lab(i, j):  # a small island the refinement misses (see above)
+        inside = (i >= i0) & (i <= i0 + 3) & (j >= 20) & (j <= 23)
+        return np.where(inside, regimes.STICK_SLIP, regimes.CONTINUOUS)
+
+    ref = Refinement((N_R, N_B), 16)
+    batch = synthetic(lab)
+    while (idx := ref.wave()).size:
+        ref.accept(idx, batch(*np.unravel_index(idx, ref.shape)))
+    inferred = ref.result()["regime"].copy()
+    wrong_before = int((inferred != truth(lab)).sum())
+    assert wrong_before == 16
+    sample = ref.verification(fraction=1.0)
+    summary = ref.accept_verification(sample, batch(*np.unravel_index(sample, ref.shape)))
+    assert summary.sampled == summary.inferred == sample.size
+    assert summary.sampled - summary.agree == wrong_before
+    out = ref.result()
+    np.testing.assert_array_equal(out["regime"], truth(lab))  # the sample's values are kept
+    assert out["simulated"].all()
+    assert (out["verification"] == 2).sum() == wrong_before
+
+
+def test_line_maps_and_bad_settings():
+    res = refine((1, 50), synthetic(lambda i, j: np.where(j < 20, 2, 1)), coarse_step=8)
+    np.testing.assert_array_equal(res.fields["regime"][0], np.where(np.arange(50) < 20, 2, 1))
+    with pytest.raises(ValueError, match="coarse_step"):
+        Refinement((10, 10), 0)
+    with pytest.raises(ValueError, match="hint"):
+        Refinement((10, 10), 4, np.zeros((3, 3), dtype=bool))
+
+
+def test_curve_hint_marks_both_sides_and_steep_parts():
+    beta = np.linspace(0.0, 1.0, 11)
+    hint = curve_hint(beta, np.array([0.25, 0.25, 0.85, np.inf]))
+    assert hint[0].nonzero()[0].tolist() == [2, 3]
+    assert hint[1].nonzero()[0].tolist() == [2, 3, 4, 5, 6, 7, 8, 9]  # the jump to 0.85
+    assert hint[2].nonzero()[0].tolist() == [8, 9] and not hint[3].any()
+
+
+def test_real_scene_agrees_with_dense_classify():
+    """SDOF ground (Fig. 3): Den Hartog's curve and the motion bound beta = 1."""
+    scene = Scene("ground", 1)
+    r = np.linspace(0.05, 3.0, 96)
+    beta = np.linspace(0.0, 1.2, 48)
+    res = adaptive_map(scene, r, beta, coarse_step=8, fidelity="fast")
+    dense = classify(scene, *np.meshgrid(r, beta, indexing="ij"), fidelity="fast").regime
+    sim = res.fields["simulated"]
+    np.testing.assert_array_equal(res.fields["regime"][sim], dense[sim])  # same simulations
+    assert (res.fields["regime"] == dense).mean() >= 0.998
+    assert sim.mean() < 0.5
+    assert_boundaries_simulated(sim, res.fields["regime"])
+    assert closed_form_hint(scene, r, beta).any()
+
+
+# --------------------------------------------------------------------------- study files
+ADAPTIVE = """
+[study]
+name = "adaptive"
+fidelity = "fast"
+chunk_points = 60
+
+[[scene]]
+name = "sweep"
+contact = "ground"
+dof = 2
+mode = "adaptive"
+coarse_step = 8
+verify_fraction = 0.01
+gamma = {values = [1.0, 2.0]}
+r = {start = 0.1, stop = 2.4, num = 64}
+beta = {start = 0.0, stop = 1.5, num = 40}
+"""
+
+
+@pytest.mark.parametrize(
+    ("edit", "field"),
+    [
+        ("coarse_step = 8", "coarse_step = 0"),
+        ('mode = "adaptive"', 'mode = "grid"'),
+        ("verify_fraction = 0.01", "verify_fraction = 1.5"),
+        ("coarse_step = 8", 'hint = "closest"'),
+    ],
+)
+def test_adaptive_scene_validation(study_file, edit, field):
+    with pytest.raises(StudyError) as err:
+        Study.from_toml(study_file(ADAPTIVE.replace(edit, field)))
+    key = field.split(" =")[0] if "mode" not in field else "coarse_step"
+    assert f"scene[0].{key}" in str(err.value)
+    pts = ADAPTIVE.replace("r = {start = 0.1, stop = 2.4, num = 64}\n", "").replace(
+        "beta = {start = 0.0, stop = 1.5, num = 40}\n", "points = [[1.0, 0.1]]\n"
+    )
+    with pytest.raises(StudyError, match="needs r and beta axes"):
+        Study.from_toml(study_file(pts))
+
+
+@pytest.mark.cluster
+def test_adaptive_study_on_local_cluster_resumes_after_interruption(tmp_path, monkeypatch):
+    from distributed import Client, LocalCluster
+
+    import study.adaptive as sa
+    from study import run_study
+
+    study = Study.from_toml(_write(tmp_path / "adaptive.toml", ADAPTIVE))
+    out = tmp_path / "adaptive.nc"
+    classify(Scene("ground", 2), np.array([1.0]), np.array([0.3]), fidelity="fast")  # warm cache
+    with (
+        LocalCluster(
+            n_workers=2,
+            threads_per_worker=1,
+            processes=True,
+            host="127.0.0.1",
+            dashboard_address=None,
+        ) as cluster,
+        Client(cluster) as client,
+    ):
+        real_wave = sa._wave
+        calls = [0]
+
+        def interrupted_wave(*args, **kwargs):
+            calls[0] += 1
+            if calls[0] == 4:  # Ctrl-C during the fourth wave of the first plane
+                raise KeyboardInterrupt
+            return real_wave(*args, **kwargs)
+
+        monkeypatch.setattr(sa, "_wave", interrupted_wave)
+        with pytest.raises(StudyInterrupted):
+            run_study(study, out, client=client, progress=False, stream=io.StringIO())
+        assert not out.exists() and (tmp_path / "adaptive.nc.work").is_dir()
+        monkeypatch.setattr(sa, "_wave", real_wave)
+        log = io.StringIO()
+        run_study(study, out, client=client, progress=False, stream=log)
+    assert not (tmp_path / "adaptive.nc.work").exists()
+    first = [
+        line for line in log.getvalue().splitlines() if "sweep[0]:" in line and "reused" in line
+    ]
+    assert len(first) == 1 and "verification: 200 of" in first[0]
+    reused = int(first[0].split(" reused")[0].split()[-1])
+    assert reused >= 3  # the point lists of waves 1-3 came from the work folder
+
+    tree = xr.open_dataset(out)
+    assert tree["regime"].dims == ("gamma", "r", "beta")
+    assert tree["simulated"].dtype == bool and tree["verification"].dims == ("gamma", "r", "beta")
+    assert tree.attrs["mode"] == "adaptive" and tree.attrs["adaptive_coarse_step"] == 8
+    assert tree.attrs["verification_sampled"] == 2 * 200
+    r, beta = tree["r"].values, tree["beta"].values
+    for k, g in enumerate((1.0, 2.0)):
+        scene = Scene("ground", 2, 1, gamma=g, kappa=1.0)
+        local = adaptive_map(scene, r, beta, coarse_step=8, verify_fraction=0.01, fidelity="fast")
+        ds = tree.isel(gamma=k)
+        np.testing.assert_array_equal(ds["simulated"].values, local.fields["simulated"])
+        np.testing.assert_array_equal(ds["regime"].values, local.fields["regime"])
+        np.testing.assert_array_equal(ds["verification"].values, local.fields["verification"])
+        sim = ds["simulated"].values
+        dense = classify(scene, *np.meshgrid(r, beta, indexing="ij"), fidelity="fast")
+        np.testing.assert_array_equal(ds["regime"].values[sim], dense.regime[sim])
+        np.testing.assert_array_equal(ds["cycles"].values[sim], dense.cycles[sim])
+        assert (ds["regime"].values == dense.regime).mean() >= 0.99
+    tree.close()
+
+
+def _write(path, text):
+    path.write_text(text, encoding="utf-8")
+    return path
