@@ -272,15 +272,15 @@ def test_adaptive_study_on_local_cluster_resumes_after_interruption(tmp_path, mo
     assert reused >= 3  # the point lists of waves 1-3 came from the work folder
 
     tree = xr.open_dataset(out)
-    assert tree["regime"].dims == ("gamma", "r", "beta")
-    assert tree["simulated"].dtype == bool and tree["verification"].dims == ("gamma", "r", "beta")
+    assert tree["regime"].dims == ("gamma", "beta", "r")
+    assert tree["simulated"].dtype == bool and tree["verification"].dims == ("gamma", "beta", "r")
     assert tree.attrs["mode"] == "adaptive" and tree.attrs["adaptive_coarse_step"] == 8
     assert tree.attrs["verification_sampled"] == 2 * 200
     r, beta = tree["r"].values, tree["beta"].values
     for k, g in enumerate((1.0, 2.0)):
         scene = Scene("ground", 2, 1, gamma=g, kappa=1.0)
         local = adaptive_map(scene, r, beta, coarse_step=8, verify_fraction=0.01, fidelity="fast")
-        ds = tree.isel(gamma=k)
+        ds = tree.isel(gamma=k).transpose(..., "r", "beta")  # the arrays of adaptive_map
         np.testing.assert_array_equal(ds["simulated"].values, local.fields["simulated"])
         np.testing.assert_array_equal(ds["regime"].values, local.fields["regime"])
         np.testing.assert_array_equal(ds["verification"].values, local.fields["verification"])
