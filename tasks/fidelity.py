@@ -20,6 +20,12 @@ max_work           2e6     2e7       2e8      mode evaluations (one per mode per
 growth_factor      1e3     1e4       1e5      section growth (vs. start) flagged UNBOUNDED
 =================  ======  ========  =======  ============================================
 
+Starts (the same in every preset): ``initial_condition`` ("held") is the start of
+a single run; ``starts`` (e.g. ``("held", "rest")``) lists the starts to compare,
+the first giving ``regime``; ``n_random`` seeded random starts (``seed``) on the
+energy scale of the forced response are added to them (``tasks.classify``:
+``regime_rest``, ``regimes_reached``, ``start_dependent``).
+
 ``fast`` is for exploratory maps (coarser events and a looser steady-state
 test: a few points near a boundary may flip or stay undetermined);
 ``balanced`` is the default for production maps; ``exact`` is for reference
@@ -49,6 +55,9 @@ class Settings:
     max_work: int = 20_000_000
     growth_factor: float = 1e4
     initial_condition: str = "held"
+    starts: tuple[str, ...] = ()
+    n_random: int = 0
+    seed: int = 0
 
     def __post_init__(self) -> None:
         checks = (
@@ -62,6 +71,14 @@ class Settings:
             ("max_work", self.max_work >= 1000, ">= 1000"),
             ("growth_factor", self.growth_factor > 1.0, "> 1"),
             ("initial_condition", self.initial_condition in ("held", "rest"), "'held' or 'rest'"),
+            (
+                "starts",
+                all(s in ("held", "rest") for s in self.starts)
+                and len(set(self.starts)) == len(self.starts),
+                "a list of distinct starts, each 'held' or 'rest'",
+            ),
+            ("n_random", 0 <= self.n_random <= 100, "in 0..100"),
+            ("seed", 0 <= self.seed < 2**31, "in 0..2**31 - 1"),
         )
         for name, ok, rule in checks:
             if not ok:
@@ -123,5 +140,10 @@ def resolve(fidelity: str = "balanced", **overrides: object) -> Settings:
             raise ValueError(f"{name}: must be true or false, got {value!r}")
         if kind is int and (isinstance(value, bool) or not float(value).is_integer()):
             raise ValueError(f"{name}: must be an integer, got {value!r}")
+        if kind is tuple:
+            if not isinstance(value, list | tuple) or not all(isinstance(v, str) for v in value):
+                raise ValueError(f"{name}: must be a list of names, got {value!r}")
+            typed[name] = tuple(value)
+            continue
         typed[name] = kind(value) if kind is not str else value
     return replace(base, **typed)

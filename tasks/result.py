@@ -20,6 +20,18 @@ FIELDS: dict[str, tuple[str, str]] = {
     "stick_fraction": ("float64", "fraction of the period the contact is stuck in steady state"),
     "period": ("int8", "period of the steady state in excitation cycles (1 or 2; 0 if none)"),
     "initial_condition": ("int8", "initial condition used (tasks.regimes.INITIAL_CONDITIONS)"),
+    "asymptotic": (
+        "bool",
+        "no motion reached asymptotically: slips shrank below the creep threshold "
+        "(tasks.regimes.SLIP_RTOL of the static friction deflection)",
+    ),
+    "regime_rest": ("int8", "regime reached from rest (-127 if rest was not a start)"),
+    "regimes_reached": (
+        "int8",
+        "regimes reached over all starts, bit mask: 1 no_motion, 2 stick_slip, "
+        "4 continuous, 8 undetermined",
+    ),
+    "start_dependent": ("bool", "two starts reached different (determined) regimes"),
 }
 
 
@@ -35,6 +47,10 @@ class ClassifyResult:
     stick_fraction: np.ndarray
     period: np.ndarray
     initial_condition: np.ndarray
+    asymptotic: np.ndarray
+    regime_rest: np.ndarray
+    regimes_reached: np.ndarray
+    start_dependent: np.ndarray
 
     @classmethod
     def empty(cls, shape: tuple[int, ...]) -> ClassifyResult:

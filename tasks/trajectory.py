@@ -135,7 +135,7 @@ def trajectory(
     ctx, work = kernel._context(r, beta, scene_args, args)[:2]
     if isinstance(start, str) and start == "steady":
         out, final = kernel.run_points(np.array([r]), np.array([beta]), scene_args, args)
-        result = result_from_kernel(out, ())
+        result = result_from_kernel(out, (), codes=[args[9]])
         X0 = final[0, : 2 * n].copy()
         mode0 = int(final[0, 2 * n])
         theta = float(final[0, 2 * n + 1])
