@@ -22,7 +22,7 @@ from pathlib import Path
 import netCDF4
 import xarray as xr
 
-from analysis import figures
+from analysis import figures, starts
 from analysis.scoring import (
     REGIME_ORDER,
     Agreement,
@@ -76,6 +76,7 @@ def open_result(path: str | os.PathLike) -> tuple[dict[str, xr.Dataset], dict[st
 def _needed(ds: xr.Dataset) -> xr.Dataset:
     """The variables the report reads (regime and boundaries), attributes kept."""
     keep = [v for v in ds.data_vars if v == "regime" or str(v).startswith("beta_")]
+    keep += [v for v in ds.data_vars if v in starts.START_VARIABLES]
     return ds[keep].assign_attrs(ds.attrs)
 
 
@@ -307,6 +308,32 @@ def _scene_section(
     lines += _planes(by_method)
     if first.kind != "trace":
         lines += _undetermined(first)
+    lines += _starts(ds)
+    return lines
+
+
+def _starts(ds: xr.Dataset) -> list[str]:
+    """Where the regime depends on the start (results classified from several starts)."""
+    counts = starts.start_counts(ds)
+    if not counts:
+        return []
+    lines = ["### Dependence on the start", ""]
+    lines += [
+        f"{counts['start_dependent']} of {counts['points']} points reach different regimes "
+        "from different starts (`start_dependent`)"
+        + (
+            f"; {counts['asymptotic']} reach no motion asymptotically (`asymptotic`, a creep)"
+            if "asymptotic" in counts
+            else ""
+        )
+        + (
+            f"; {counts['undetermined_from_a_start']} are undetermined from at least one start"
+            if "undetermined_from_a_start" in counts
+            else ""
+        )
+        + ".",
+        "",
+    ]
     return lines
 
 
@@ -344,6 +371,9 @@ def _scene_figures(
 ) -> list[Path]:
     stem = _safe(name)
     paths = [figures.save_regime_map(ds, out_dir / f"{stem}_map.png")]
+    fig = starts.start_dependence_figure(ds, title=None)
+    if fig is not None and starts.start_counts(ds)["start_dependent"] > 0:
+        paths.append(figures.save_figure(fig, out_dir / f"{stem}_starts.png"))
     if by_method and any(a.deviations for a in by_method.values()):
         title = f"{ds.attrs.get('scene_label') or name}: boundary deviation"
         paths.append(

@@ -248,7 +248,7 @@ def scene_dataset(plan: ScenePlan, study: Study) -> tuple[xr.Dataset, dict[str, 
             "complevel": 4,
             "chunksizes": _nc_chunksizes(shape),
         }
-        if name == "regime":
+        if name in ("regime", "regime_rest"):
             attrs.update(regimes.cf_flag_attributes())
             enc.update(_FillValue=regimes.NOT_COMPUTED, dtype="int8")
         elif not dt.startswith("float"):
