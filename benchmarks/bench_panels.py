@@ -26,7 +26,9 @@ from pathlib import Path
 import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
+# --code DIR: measure another checkout's tasks/ (e.g. the commit before a change)
+_CODE = sys.argv[sys.argv.index("--code") + 1] if "--code" in sys.argv else str(REPO)
+sys.path.insert(0, _CODE)
 
 from study.bench import machine  # noqa: E402
 from study.definition import Study  # noqa: E402
@@ -55,7 +57,9 @@ def panels() -> list[tuple[str, Scene, np.ndarray, np.ndarray]]:
     return out
 
 
-def run(label: str, output: Path, only: str | None, save: Path | None) -> None:
+def run(
+    label: str, output: Path, only: str | None, save: Path | None, starts: list[str]
+) -> None:
     rows = []
     raw: dict[str, np.ndarray] | None = {} if save else None
     classify(Scene("ground", dof=2), 0.5, 0.3)  # compile / load the cache
@@ -64,10 +68,11 @@ def run(label: str, output: Path, only: str | None, save: Path | None) -> None:
             continue
         row: dict[str, object] = {"panel": name, "points": int(r.size)}
         regime = {}
-        for start in ("held", "rest"):
-            t0 = time.perf_counter()
+        for start in starts:
+            t0, c0 = time.perf_counter(), time.process_time()
             res = classify(scene, r, beta, initial_condition=start)
             row[f"seconds_{start}"] = time.perf_counter() - t0
+            row[f"cpu_seconds_{start}"] = time.process_time() - c0
             regime[start] = res.regime
             if raw is not None:
                 for field in ("regime", "slip_amplitude", "cycles", "stops_per_cycle"):
@@ -79,8 +84,9 @@ def run(label: str, output: Path, only: str | None, save: Path | None) -> None:
             row[f"creep_stick_slip_{start}"] = int(creep.sum())
             if hasattr(res, "start_dependent"):
                 row[f"start_dependent_flag_{start}"] = int(np.asarray(res.start_dependent).sum())
-        both = (regime["held"] >= 0) & (regime["rest"] >= 0)
-        row["held_rest_differ"] = int((both & (regime["held"] != regime["rest"])).sum())
+        if len(regime) == 2:
+            both = (regime["held"] >= 0) & (regime["rest"] >= 0)
+            row["held_rest_differ"] = int((both & (regime["held"] != regime["rest"])).sum())
         rows.append(row)
         print(json.dumps(row), flush=True)
     output.write_text(json.dumps({"label": label, "machine": machine(), "rows": rows}, indent=1))
@@ -113,12 +119,14 @@ def main() -> None:
     ap.add_argument("--label", default="")
     ap.add_argument("--only", default=None, help="run only panels whose name contains this")
     ap.add_argument("--save", type=Path, default=None, help="also save the raw maps (.npz)")
+    ap.add_argument("--starts", default="held,rest", help="comma-separated: held,rest")
+    ap.add_argument("--code", default=None, help="import tasks from this checkout instead")
     ap.add_argument("--compare", nargs=2, type=Path, metavar=("BEFORE", "AFTER"))
     args = ap.parse_args()
     if args.compare:
         compare(*args.compare)
     else:
-        run(args.label, args.output, args.only, args.save)
+        run(args.label, args.output, args.only, args.save, args.starts.split(","))
 
 
 if __name__ == "__main__":
