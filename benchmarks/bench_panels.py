@@ -57,9 +57,7 @@ def panels() -> list[tuple[str, Scene, np.ndarray, np.ndarray]]:
     return out
 
 
-def run(
-    label: str, output: Path, only: str | None, save: Path | None, starts: list[str]
-) -> None:
+def run(label: str, output: Path, only: str | None, save: Path | None, starts: list[str]) -> None:
     rows = []
     raw: dict[str, np.ndarray] | None = {} if save else None
     classify(Scene("ground", dof=2), 0.5, 0.3)  # compile / load the cache
