@@ -297,7 +297,7 @@ def _scene_section(
     lines = _scene_header(name, ds)
     lines += [f"![{p.stem}]({p.name})" for p in images] + [""]
     if not by_method:
-        return lines + ["No closed-form bounds in this scene: nothing scored.", ""]
+        return lines + ["No closed-form bounds in this scene: nothing scored.", ""] + _starts(ds)
     first = next(iter(by_method.values()))
     if first.kind != "trace":
         lines += ["### Confusion matrices", ""]

@@ -244,3 +244,35 @@ def test_low_r_base_m1_orbit_keeps_the_stick_invariant(fidelity):
     r = 0.02 + (2.5 - 0.02) * 52 / 249
     beta = 4.0 * 3 / 99
     assert _max_stuck_force_ratio(scene, r, beta, fidelity) <= 1.0 + 1e-6
+
+
+def test_report_maps_where_the_regime_depends_on_the_start(tmp_path):
+    """A result with start variables gets a 'Dependence on the start' section and map."""
+    import xarray as xr
+
+    from analysis.report import write_report
+
+    r = np.linspace(0.1, 2.0, 6)
+    beta = np.linspace(0.0, 1.0, 5)
+    regime = np.full((6, 5), regimes.STICK_SLIP, dtype=np.int8)
+    dep = np.zeros((6, 5), dtype=bool)
+    dep[2, 3] = dep[4, 1] = True
+    asym = np.zeros((6, 5), dtype=bool)
+    asym[0, 4] = True
+    ds = xr.Dataset(
+        {
+            "regime": (("r", "beta"), regime, regimes.cf_flag_attributes()),
+            "start_dependent": (("r", "beta"), dep),
+            "asymptotic": (("r", "beta"), asym),
+            "regimes_reached": (("r", "beta"), np.where(dep, 6, 2).astype(np.int8)),
+        },
+        coords={"r": r, "beta": beta},
+        attrs={"scene_name": "s", "contact": "ground", "dof": 2, "contact_mass": 1},
+    )
+    path = tmp_path / "res.nc"
+    ds.to_netcdf(path, engine="netcdf4")
+    md = write_report(path, tmp_path / "rep").read_text()
+    assert "### Dependence on the start" in md
+    assert "2 of 30 points reach different regimes" in md
+    assert "1 reach no motion asymptotically" in md
+    assert (tmp_path / "rep" / "s_starts.png").exists()
