@@ -65,6 +65,7 @@ from numba import njit
 from tasks.regimes import (
     CONTINUOUS,
     CREEP_FORCE_RTOL,
+    CREEP_SLIP_RTOL,
     CREEP_WINDOW,
     EVENT_LIMIT,
     IC_HELD,
@@ -1420,6 +1421,7 @@ def simulate_point(r, beta, scene, settings, out, final):
     out[OUT_ASYMPTOTIC] = 0.0
     slip_tol = creep_threshold(ctx, beta)
     small_run = 0
+    quiet_run = 0
     n = X.shape[0] // 2
     theta = 0.0  # phase of the Poincare section
     final[: 2 * n] = X
@@ -1483,13 +1485,21 @@ def simulate_point(r, beta, scene, settings, out, final):
         mode_prev = mode
         X = X_new
         mode = mode_new
-        # creep towards the stuck set: slips below the threshold for a window of
-        # cycles and a contact force that can exceed beta only marginally
-        if 0.5 * (stats[ST_DMAX] - stats[ST_DMIN]) < slip_tol:
+        # creep towards the stuck set: small slips for a window of cycles, most
+        # cycles without any event (so no orbit of period 1 or 2), and a contact
+        # force that can exceed beta only marginally
+        if 0.5 * (stats[ST_DMAX] - stats[ST_DMIN]) < CREEP_SLIP_RTOL / SLIP_RTOL * slip_tol:
             small_run += 1
+            quiet_run += 1 if stats[ST_EVENTS] == 0.0 else 0
         else:
             small_run = 0
-        if small_run >= CREEP_WINDOW and mode == 0 and creep_settled(X, ctx, theta):
+            quiet_run = 0
+        if (
+            small_run >= CREEP_WINDOW
+            and 2 * quiet_run > small_run
+            and mode == 0
+            and creep_settled(X, ctx, theta)
+        ):
             _asymptotic_no_motion(out, stats, cycles, ic_used)
             return
         scale = max(_max_abs(X), 1e-300)
