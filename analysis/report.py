@@ -23,7 +23,7 @@ import netCDF4
 import numpy as np
 import xarray as xr
 
-from analysis import figures
+from analysis import figures, starts
 from analysis.scoring import (
     REGIME_ORDER,
     Agreement,
@@ -78,6 +78,7 @@ def _needed(ds: xr.Dataset) -> xr.Dataset:
     """The variables the report reads (regime and boundaries), attributes kept."""
     wanted = ("regime", "amplitude", "amplitude_relative")
     keep = [v for v in ds.data_vars if v in wanted or str(v).startswith("beta_")]
+    keep += [v for v in ds.data_vars if v in starts.START_VARIABLES]
     return ds[keep].assign_attrs(ds.attrs)
 
 
@@ -336,7 +337,7 @@ def _scene_section(
     lines = _scene_header(name, ds)
     lines += [f"![{p.stem}]({p.name})" for p in images] + [""]
     if not by_method:
-        return lines + ["No closed-form bounds in this scene: nothing scored.", ""]
+        return lines + ["No closed-form bounds in this scene: nothing scored.", ""] + _starts(ds)
     first = next(iter(by_method.values()))
     if first.kind != "trace":
         lines += ["### Confusion matrices", ""]
@@ -347,6 +348,32 @@ def _scene_section(
     lines += _planes(by_method)
     if first.kind != "trace":
         lines += _undetermined(first)
+    lines += _starts(ds)
+    return lines
+
+
+def _starts(ds: xr.Dataset) -> list[str]:
+    """Where the regime depends on the start (results classified from several starts)."""
+    counts = starts.start_counts(ds)
+    if not counts:
+        return []
+    lines = ["### Dependence on the start", ""]
+    lines += [
+        f"{counts['start_dependent']} of {counts['points']} points reach different regimes "
+        "from different starts (`start_dependent`)"
+        + (
+            f"; {counts['asymptotic']} reach no motion asymptotically (`asymptotic`, a creep)"
+            if "asymptotic" in counts
+            else ""
+        )
+        + (
+            f"; {counts['undetermined_from_a_start']} are undetermined from at least one start"
+            if "undetermined_from_a_start" in counts
+            else ""
+        )
+        + ".",
+        "",
+    ]
     return lines
 
 
@@ -384,6 +411,9 @@ def _scene_figures(
 ) -> list[Path]:
     stem = _safe(name)
     paths = [figures.save_regime_map(ds, out_dir / f"{stem}_map.png")]
+    fig = starts.start_dependence_figure(ds, title=None)
+    if fig is not None and starts.start_counts(ds)["start_dependent"] > 0:
+        paths.append(figures.save_figure(fig, out_dir / f"{stem}_starts.png"))
     if by_method and any(a.deviations for a in by_method.values()):
         title = f"{figures.scene_title(ds)}: boundary deviation"
         paths.append(

@@ -597,6 +597,7 @@ class Study:
             "int": "an integer",
             "float": "a number",
             "str": "a string",
+            "tuple": "a list of names",
         }
         for key, value in self.overrides:
             default = getattr(PRESETS["balanced"], key, None)
@@ -604,6 +605,8 @@ class Study:
                 continue  # unknown names are reported by resolve()
             kind = type(default)
             ok = isinstance(value, kind) and not (kind is not bool and isinstance(value, bool))
+            if kind is tuple:
+                ok = isinstance(value, list | tuple) and all(isinstance(v, str) for v in value)
             if kind is float:
                 ok = _is_number(value) and math.isfinite(value)
             if not ok:

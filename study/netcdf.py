@@ -322,7 +322,7 @@ def scene_dataset(plan: ScenePlan, study: Study) -> tuple[xr.Dataset, dict[str, 
         }
         if not dt.startswith("float"):  # codes and counts: complete, no fill value
             enc["_FillValue"] = None
-        if name == "regime":
+        if name in ("regime", "regime_rest"):
             enc["dtype"] = "int8"
         lazy = da.full(vshape, _fill(dt), dtype=dt, chunks=_fill_chunks_shape(vshape, grid))
         data_vars[name] = xr.Variable(vdims, lazy, _attrs(name))

@@ -49,8 +49,12 @@ def scene_modes_cached(scene: Scene) -> SceneModes:
     return scene_modes(scene)
 
 
-def settings_args(settings: Settings) -> tuple:
-    """The solver settings as the tuple the kernels take (:func:`tasks.kernel._context`)."""
+def settings_args(settings: Settings, start: int | None = None) -> tuple:
+    """The solver settings as the tuple the kernels take (:func:`tasks.kernel._context`).
+
+    ``start`` overrides the initial condition code (``tasks.regimes.IC_*``;
+    ``IC_RANDOM + k`` is the k-th seeded random start)."""
+    ic = _IC_CODES[settings.initial_condition] if start is None else int(start)
     return (
         float(settings.event_tol),
         float(settings.step_fraction),
@@ -61,8 +65,9 @@ def settings_args(settings: Settings) -> tuple:
         int(settings.shooting_after),
         int(settings.max_events),
         float(settings.growth_factor),
-        _IC_CODES[settings.initial_condition],
+        ic,
         float(settings.max_work),
+        int(settings.seed),
     )
 
 
@@ -91,7 +96,10 @@ def classify(
     fidelity : {"fast", "balanced", "exact"}
         Preset of solver settings (:mod:`tasks.fidelity`).
     **settings
-        Overrides of single settings, e.g. ``max_cycles=5000``.
+        Overrides of single settings, e.g. ``max_cycles=5000``; several starts
+        per point with ``starts=("held", "rest")`` and ``n_random=4`` (seeded
+        random starts, ``seed=0``; :mod:`tasks.fidelity`). Each start costs one
+        more simulation of every point.
 
     Returns
     -------
@@ -99,7 +107,10 @@ def classify(
         Arrays of the broadcast shape: ``regime`` (codes of
         :mod:`tasks.regimes`; negative = undetermined, with the reason),
         ``converged``, ``cycles``, ``stops_per_cycle``, ``slip_amplitude``,
-        ``stick_fraction``, ``period``, ``initial_condition``.
+        ``stick_fraction``, ``period``, ``initial_condition`` (of the first
+        start), ``asymptotic`` (no motion reached by a creep: slips shrinking
+        below the threshold of ``tasks.regimes.SLIP_RTOL``), and over all starts
+        ``regime_rest``, ``regimes_reached`` (bit mask) and ``start_dependent``.
 
     Raises
     ------
@@ -121,12 +132,33 @@ def classify(
     flat_r = np.ascontiguousarray(r_arr.ravel())
     flat_beta = np.ascontiguousarray(beta_arr.ravel())
     scene_args = scene_modes_cached(scene).kernel_args()
-    args = settings_args(resolved)
-    out, final = kernel.run_points(flat_r, flat_beta, scene_args, args)
+    codes = start_codes(resolved)
+    first = settings_args(resolved, codes[0])
+    out, final = kernel.run_points(flat_r, flat_beta, scene_args, first)
     design, _ = kernel.orbit_designs(
-        flat_r, flat_beta, scene_args, args, out, final, kernel.DESIGN_SAMPLES
-    )
-    return result_from_kernel(out, shape, design, scene.contact == "base")
+        flat_r, flat_beta, scene_args, first, out, final, kernel.DESIGN_SAMPLES
+    )  # design quantities of the first start's orbit
+    others = [
+        kernel.run_points(flat_r, flat_beta, scene_args, settings_args(resolved, c))[0]
+        for c in codes[1:]
+    ]
+    return result_from_kernel(out, shape, design, scene.contact == "base", others, codes)
+
+
+def start_codes(settings: Settings) -> list[int]:
+    """Initial condition codes of the starts to run, the first giving ``regime``:
+    ``settings.starts`` (or ``initial_condition`` alone) and ``n_random`` seeded
+    random starts."""
+    named = settings.starts or (settings.initial_condition,)
+    codes = [_IC_CODES[s] for s in named]
+    return codes + [regimes.IC_RANDOM + k for k in range(settings.n_random)]
+
+
+def reached_bit(regime: np.ndarray) -> np.ndarray:
+    """Bit of ``regimes_reached`` for each regime code: ``1 << code`` for a regime
+    (0, 1, 2), ``1 << 3`` for any undetermined code."""
+    regime = np.asarray(regime, dtype=np.int64)
+    return np.where(regime >= 0, np.left_shift(1, np.clip(regime, 0, 2)), 8).astype(np.int8)
 
 
 #: Column of :func:`tasks.kernel.run_points`'s output holding each result field.
@@ -139,6 +171,7 @@ KERNEL_COLUMNS = {
     "stick_fraction": kernel.OUT_STICK,
     "period": kernel.OUT_PERIOD,
     "initial_condition": kernel.OUT_IC,
+    "asymptotic": kernel.OUT_ASYMPTOTIC,
 }
 
 
@@ -147,19 +180,37 @@ def result_from_kernel(
     shape: tuple[int, ...],
     design: np.ndarray | None = None,
     base: bool = False,
+    others: list[np.ndarray] = (),
+    codes: list[int] = (regimes.IC_HELD,),
 ) -> ClassifyResult:
     """A :class:`ClassifyResult` of ``shape`` from the kernel's output.
 
-    ``out`` is :func:`tasks.kernel.run_points`' ``(n_points, N_OUT)`` array,
-    ``design`` :func:`tasks.kernel.orbit_designs`' ``(n_points, 2 N + 2)``
-    (NaN design quantities if omitted); ``base`` says the kernel's coordinates
-    are relative to the base (base-fixed wall, docs/theory.md 2).
+    ``out`` is :func:`tasks.kernel.run_points`' ``(n_points, N_OUT)`` array of
+    the first start, ``others`` those of the other starts (initial condition
+    ``codes``, the first one that of ``out``); ``design``
+    :func:`tasks.kernel.orbit_designs`' ``(n_points, 2 N + 2)`` of the first
+    start's orbit (NaN design quantities if omitted); ``base`` says the
+    kernel's coordinates are relative to the base (base-fixed wall,
+    docs/theory.md 2).
     """
     fields = {
         name: out[:, col].astype(FIELDS[name][0]).reshape(shape)
         for name, col in KERNEL_COLUMNS.items()
     }
     fields.update(design_fields(design, out.shape[0], shape, base))
+    all_regimes = [out[:, kernel.OUT_REGIME]] + [o[:, kernel.OUT_REGIME] for o in others]
+    reached = np.zeros(out.shape[0], dtype=np.int8)
+    for reg in all_regimes:
+        reached |= reached_bit(reg)
+    rest = np.full(out.shape[0], regimes.NOT_COMPUTED, dtype=np.int8)
+    for code, reg in zip(codes, all_regimes, strict=False):
+        if code == regimes.IC_REST:
+            rest = reg.astype(np.int8)
+    determined = (reached & 7).astype(np.int64)
+    n_regimes = (determined & 1) + ((determined >> 1) & 1) + ((determined >> 2) & 1)
+    fields["regime_rest"] = rest.reshape(shape)
+    fields["regimes_reached"] = reached.reshape(shape)
+    fields["start_dependent"] = (n_regimes >= 2).reshape(shape)
     return ClassifyResult(**fields)
 
 

@@ -23,6 +23,12 @@ max_work           2e6     2e7       2e8      work units per point before WORK_L
 growth_factor      1e3     1e4       1e5      section growth (vs. start) flagged UNBOUNDED
 =================  ======  ========  =======  ============================================
 
+Starts (the same in every preset): ``initial_condition`` ("held") is the start of
+a single run; ``starts`` (e.g. ``("held", "rest")``) lists the starts to compare,
+the first giving ``regime``; ``n_random`` seeded random starts (``seed``) on the
+energy scale of the forced response are added to them (``tasks.classify``:
+``regime_rest``, ``regimes_reached``, ``start_dependent``).
+
 ``fast`` is for exploratory maps (coarser events and a looser steady-state
 test: a few points near a boundary may flip or stay undetermined);
 ``balanced`` is the default for production maps; ``exact`` is for reference
@@ -62,6 +68,8 @@ LIMITS: dict[str, tuple[float, float]] = {
     "max_events": (4, 10_000_000),
     "max_work": (1_000, 100_000_000_000),
     "growth_factor": (1.0, 1e15),
+    "n_random": (0, 100),
+    "seed": (0, 2**31 - 1),
 }
 #: Settings whose lower limit is excluded.
 OPEN_BELOW = frozenset({"growth_factor"})
@@ -78,6 +86,9 @@ def _check_type(name: str, value: object, kind: type) -> None:
         )
         ok = ok and not isinstance(value, bool | np.bool_)
         rule = "an integer"
+    elif kind is tuple:
+        ok = isinstance(value, tuple) and all(isinstance(v, str) for v in value)
+        rule = "a list of names"
     elif kind is float:
         ok = isinstance(value, Real) and not isinstance(value, bool | np.bool_)
         ok = ok and math.isfinite(value)
@@ -104,6 +115,9 @@ class Settings:
     max_work: int = 20_000_000
     growth_factor: float = 1e4
     initial_condition: str = "held"
+    starts: tuple[str, ...] = ()
+    n_random: int = 0
+    seed: int = 0
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -120,6 +134,13 @@ class Settings:
         if self.initial_condition not in ("held", "rest"):
             raise ValueError(
                 f"initial_condition: must be 'held' or 'rest', got {self.initial_condition!r}"
+            )
+        if not all(s in ("held", "rest") for s in self.starts) or len(set(self.starts)) != len(
+            self.starts
+        ):
+            raise ValueError(
+                f"starts: must be a list of distinct starts, each 'held' or 'rest', "
+                f"got {list(self.starts)!r}"
             )
 
     def to_dict(self) -> dict[str, object]:
@@ -174,6 +195,11 @@ def resolve(fidelity: str = "balanced", **overrides: object) -> Settings:
     typed = {}
     for name, value in overrides.items():
         kind = type(getattr(base, name))
+        if kind is tuple:
+            if not isinstance(value, list | tuple) or not all(isinstance(v, str) for v in value):
+                raise ValueError(f"{name}: must be a list of names, got {value!r}")
+            typed[name] = tuple(value)
+            continue
         _check_type(name, value, kind)
         typed[name] = kind(value) if kind is not str else value
     return replace(base, **typed)

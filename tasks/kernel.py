@@ -64,12 +64,17 @@ from numba import njit
 
 from tasks.regimes import (
     CONTINUOUS,
+    CREEP_FORCE_RTOL,
+    CREEP_SLIP_RTOL,
+    CREEP_WINDOW,
     EVENT_LIMIT,
     IC_HELD,
+    IC_RANDOM,
     IC_REST,
     NO_MOTION,
     NOT_CONVERGED,
     NUMERICAL_FAILURE,
+    SLIP_RTOL,
     STICK_SLIP,
     UNBOUNDED,
     WORK_LIMIT,
@@ -623,7 +628,8 @@ REC_TAU, REC_KIND, REC_MODE, REC_G, REC_X = range(5)
 
 # Fields of the per-point output array (see tasks.result.FIELDS).
 OUT_REGIME, OUT_CONVERGED, OUT_CYCLES, OUT_STOPS, OUT_AMP, OUT_STICK, OUT_PERIOD, OUT_IC = range(8)
-N_OUT = 8
+OUT_ASYMPTOTIC = 8
+N_OUT = 9
 
 
 @njit(cache=True)
@@ -1176,6 +1182,65 @@ def _shoot(X0, mode, stats, ctx, work, rtol, floor, max_newton, theta):
 
 
 @njit(cache=True)
+def newton_settle(X0, mode, stats, ctx, work, rtol, floor, max_iter, theta):
+    """Newton's method on the Poincare map with a fresh Jacobian at every step.
+
+    The fallback for slow points (a Floquet multiplier near 1, e.g. next to an
+    antiresonance, where the held system is nearly resonant and the free mode
+    beats with the excitation over thousands of periods), where the
+    Broyden-updated shooting of :func:`_shoot` fails its line search. Works in
+    the chart of ``mode`` (:func:`_reduce`); an iterate may leave the chart for a
+    step (its image is projected back), but the fixed point must lie in it. A
+    fixed point is accepted only if its residual is below ``rtol`` of the motion
+    (or of ``floor``) and it is not unstable (spectral radius of the Jacobian at
+    the fixed point at most 1 + 1e-6), so it is an attractor, reached from the
+    point's own trajectory. Costs ``dim + 1`` periods per step.
+
+    Returns ``(success, X, cycles_used)``; on success ``stats`` holds the
+    statistics of the verified period ``X -> P(X)``.
+    """
+    n = X0.shape[0] // 2
+    b = ctx[CTX_B]
+    w = ctx[CTX_W]
+    T = ctx[CTX_T]
+    proj = ctx[CTX_PROJ]
+    y = _reduce(X0, mode, b, w, proj)
+    dim = y.shape[0]
+    J = np.empty((dim, dim))
+    cycles = 0
+    for _ in range(max_iter):
+        X = _expand(y, mode, n, w, T)
+        P, m1, _s = _cycle(X, _phase_of(X, mode, b), theta, stats, ctx, work, theta)
+        cycles += 1
+        if stats[ST_STATUS] != STATUS_OK or stats[ST_FOREVER] > 0.0:
+            return False, X, cycles
+        y1 = _reduce(P, mode, b, w, proj)
+        R = y1 - y
+        scale = max(_max_abs(P), 1e-300)
+        used = _fd_jacobian(y, y1, mode, ctx, work, scale, J, theta)
+        if used < 0 or not np.all(np.isfinite(J)):
+            return False, X, cycles + dim
+        cycles += used
+        if _max_abs(R) <= rtol * max(scale, floor) and _same_chart(m1, mode):
+            dP = J.copy()
+            for i in range(dim):
+                dP[i, i] += 1.0
+            radius = np.max(np.abs(np.linalg.eigvals(dP.astype(np.complex128))))
+            if radius > 1.0 + 1e-6:
+                return False, X, cycles
+            _cycle(X, _phase_of(X, mode, b), theta, stats, ctx, work, theta)
+            return True, X, cycles + 1
+        try:
+            step = np.linalg.solve(J, -R)
+        except Exception:  # singular: no isolated fixed point
+            return False, X, cycles
+        if not np.all(np.isfinite(step)) or _max_abs(step) > 100.0 * max(scale, floor):
+            return False, X, cycles
+        y = y + step
+    return False, _expand(y, mode, n, w, T), cycles
+
+
+@njit(cache=True)
 def _context(r, beta, scene, settings):
     """Per-point constants of both phases, the held initial condition and its phase.
 
@@ -1275,7 +1340,7 @@ def _context(r, beta, scene, settings):
     # held system at tau = 0 (from rest if the held system is resonant).
     ic_used = initial_condition
     X = np.zeros(2 * n)
-    if initial_condition == IC_HELD:
+    if initial_condition == IC_HELD or initial_condition >= IC_RANDOM:
         zeta = np.zeros(m)
         for k in range(m):
             den = seg_stick[OMEGA, k] ** 2 - 1.0
@@ -1285,16 +1350,158 @@ def _context(r, beta, scene, settings):
                 ic_used = IC_REST
                 break
             zeta[k] = seg_stick[LOAD_COS, k] / den
-        if ic_used == IC_HELD:
+        if ic_used != IC_REST:
             for i in range(m):
                 qi = 0.0
                 for k in range(m):
                     qi += phi_s[i, k] * zeta[k]
                 for j in range(n):
                     X[j] += T[j, i] * qi
+    if initial_condition >= IC_RANDOM:
+        X = _random_start(X, gamma, K, p, r, beta, initial_condition - IC_RANDOM, settings[11])
+        ic_used = initial_condition
+        return ctx, work, X, start_phase(X, beta, ctx, 0.0), ic_used
     g0 = _contact_force(p, 1.0, K, X[:n], g_load)
     mode = 0 if abs(g0) <= beta else (1 if g0 > 0.0 else -1)
     return ctx, work, X, mode, ic_used
+
+
+@njit(cache=True)
+def creep_threshold(ctx, beta):
+    """Slip amplitude below which a slip is not motion: ``SLIP_RTOL * beta * c``.
+
+    ``c = b^T K^-1 b`` is the static compliance the contact sees, so ``beta c``
+    is the static deflection the friction force produces at the contact. A slip
+    of amplitude ``a`` changes the spring force at the contact by about
+    ``a / c``; below the threshold that is less than ``SLIP_RTOL`` of the
+    friction force, i.e. indistinguishable from holding with a friction ratio
+    changed by one part in ``1 / SLIP_RTOL`` (docs/theory.md 3, creep).
+    """
+    b = ctx[CTX_B]
+    c = _dot(b, np.linalg.solve(ctx[CTX_K], b))
+    return SLIP_RTOL * beta * abs(c)
+
+
+@njit(cache=True)
+def stick_force_bound(seg, sc):
+    """``|G0| + |H| + sum_k |alpha_k| A_free,k``: the largest ``|g|`` a stick phase
+    can ever reach (the bound of :func:`never_unsticks`; tight when the free
+    frequencies are incommensurate with the excitation and each other)."""
+    harmonic = sc[OBS_COS]
+    free_sum = 0.0
+    const = sc[OBS0] - sc[OBS_COS] * sc[COS_TAU0]
+    for k in range(seg.shape[1]):
+        w = seg[OMEGA, k]
+        den = w * w - 1.0
+        if den == 0.0:
+            return np.inf
+        pk = seg[LOAD_COS, k] / den
+        static = seg[LOAD_CONST, k] / (w * w)
+        d = seg[ETA0, k] - static - pk * sc[COS_TAU0]
+        e = (seg[ETAD0, k] + pk * sc[SIN_TAU0]) / w
+        alpha = seg[ALPHA, k]
+        const -= alpha * (pk * sc[COS_TAU0] + d)
+        harmonic += alpha * pk
+        free_sum += abs(alpha) * math.hypot(d, e)
+    return abs(const) + abs(harmonic) + free_sum
+
+
+@njit(cache=True)
+def creep_settled(X, ctx, theta):
+    """A stuck section state from which ``|g|`` can exceed beta by at most
+    ``CREEP_FORCE_RTOL * beta``: whatever slips remain are driven by a force
+    excess of that order, and their amplitude (about excess^2 in units of the
+    static deflection, measured near the motion bound) stays below the creep
+    threshold; the limit is no motion."""
+    n = X.shape[0] // 2
+    seg = ctx[CTX_SEG_STICK]
+    sc = ctx[CTX_SC]
+    beta = ctx[CTX_BETA]
+    work = np.zeros(2 * seg.shape[1])
+    _start_stick(
+        seg,
+        sc,
+        X[:n].copy(),
+        X[n:].copy(),
+        theta,
+        beta,
+        ctx[CTX_B],
+        ctx[CTX_W],
+        ctx[CTX_PROJ],
+        ctx[CTX_PHI_S_T_GAMMA_S],
+        ctx[CTX_DSTAT_R2],
+        ctx[CTX_G_COS],
+        ctx[CTX_G_D0],
+        work,
+    )
+    bound = stick_force_bound(seg, sc)
+    return math.isfinite(bound) and bound <= beta * (1.0 + CREEP_FORCE_RTOL)
+
+
+@njit(cache=True)
+def _creep_limit(out, slip_tol):
+    """A converged stick-slip orbit whose slip is below the creep threshold is
+    no motion (reached asymptotically; the measured slip stays in ``out``)."""
+    if out[OUT_REGIME] == STICK_SLIP and out[OUT_AMP] < slip_tol:
+        out[OUT_REGIME] = NO_MOTION
+        out[OUT_STOPS] = 0.0
+        out[OUT_ASYMPTOTIC] = 1.0
+
+
+@njit(cache=True)
+def _asymptotic_no_motion(out, stats, cycles, ic_used):
+    """No motion reached asymptotically (:func:`creep_settled`): the last cycle's
+    slip amplitude and stick fraction are kept as diagnostics."""
+    out[OUT_REGIME] = NO_MOTION
+    out[OUT_CONVERGED] = 1.0
+    out[OUT_CYCLES] = cycles
+    out[OUT_STOPS] = 0.0
+    out[OUT_AMP] = 0.5 * (stats[ST_DMAX] - stats[ST_DMIN])
+    out[OUT_STICK] = stats[ST_STUCK_TIME] / TWO_PI
+    out[OUT_PERIOD] = 1.0
+    out[OUT_IC] = ic_used
+    out[OUT_ASYMPTOTIC] = 1.0
+
+
+@njit(cache=True)
+def _random_start(X_held, gamma, K, p, r, beta, k, seed):
+    """Seeded random start number ``k`` on the energy scale of the forced response.
+
+    A random direction in the state space ``(x, x')`` scaled to an energy
+    ``E = 1/2 x^T K x + 1/2 x'^T M x'`` drawn uniformly in ``(0, 2 E_ref]``,
+    ``E_ref`` the larger of the energies of the held start (the forced response
+    of the held system) and of the static response ``K^-1 p``. The stream
+    depends only on ``(seed, k, r, beta)``: the same point gets the same starts
+    in any chunk and on any worker.
+    """
+    n = K.shape[0]
+    h = (seed * 1000003 + k * 7919) & 0x7FFFFFFF
+    h = (h * 31 + int(r * 1e9)) & 0x7FFFFFFF
+    h = (h * 31 + int(beta * 1e9)) & 0x7FFFFFFF
+    np.random.seed(h)  # noqa: NPY002 (numba: the legacy API only)
+    x_stat = np.linalg.solve(K, p)
+    e_ref = max(_energy(X_held, gamma, K, r), 0.5 * _dot(x_stat, p), 1e-300)
+    X = np.empty(2 * n)
+    for i in range(2 * n):
+        X[i] = np.random.standard_normal()  # noqa: NPY002
+    e = _energy(X, gamma, K, r)
+    u = 1.0 - np.random.random()  # noqa: NPY002
+    scale = math.sqrt(2.0 * e_ref * u / max(e, 1e-300))
+    for i in range(2 * n):
+        X[i] *= scale
+    return X
+
+
+@njit(cache=True)
+def _energy(X, gamma, K, r):
+    """``1/2 x^T K x + 1/2 x'^T M x'`` with ``M = r^2 diag(gamma)`` (Eq. 68)."""
+    n = K.shape[0]
+    e = 0.0
+    for i in range(n):
+        e += 0.5 * r * r * gamma[i] * X[n + i] * X[n + i]
+        for j in range(n):
+            e += 0.5 * X[i] * K[i, j] * X[j]
+    return e
 
 
 @njit(cache=True)
@@ -1363,8 +1570,13 @@ def simulate_point(r, beta, scene, settings, out, final):
         growth_factor,
         _initial_condition,
         _max_work,
+        _seed,
     ) = settings
     ctx, work, X, mode, ic_used = _context(r, beta, scene, settings)
+    out[OUT_ASYMPTOTIC] = 0.0
+    slip_tol = creep_threshold(ctx, beta)
+    small_run = 0
+    quiet_run = 0
     n = X.shape[0] // 2
     theta = 0.0  # phase of the Poincare section
     final[: 2 * n] = X
@@ -1428,6 +1640,23 @@ def simulate_point(r, beta, scene, settings, out, final):
         mode_prev = mode
         X = X_new
         mode = mode_new
+        # creep towards the stuck set: small slips for a window of cycles, most
+        # cycles without any event (so no orbit of period 1 or 2), and a contact
+        # force that can exceed beta only marginally
+        if 0.5 * (stats[ST_DMAX] - stats[ST_DMIN]) < CREEP_SLIP_RTOL / SLIP_RTOL * slip_tol:
+            small_run += 1
+            quiet_run += 1 if stats[ST_EVENTS] == 0.0 else 0
+        else:
+            small_run = 0
+            quiet_run = 0
+        if (
+            small_run >= CREEP_WINDOW
+            and 2 * quiet_run > small_run
+            and mode == 0
+            and creep_settled(X, ctx, theta)
+        ):
+            _asymptotic_no_motion(out, stats, cycles, ic_used)
+            return
         scale = max(_max_abs(X), 1e-300)
         if cycles <= 2:
             ref = max(ref, scale)
@@ -1449,6 +1678,7 @@ def simulate_point(r, beta, scene, settings, out, final):
                 final[: 2 * n] = X_prev
                 final[2 * n] = mode_prev
                 _finish(out, stats, stats_prev, 1, cycles, ic_used)
+                _creep_limit(out, slip_tol)
                 return
         chart_flips = chart_flips + 1 if not _same_chart(mode, mode_prev) else 0
         if cycles >= min_cycles + 1 and _same_chart(mode, mode_prev2):
@@ -1458,6 +1688,7 @@ def simulate_point(r, beta, scene, settings, out, final):
                 final[: 2 * n] = X_prev2
                 final[2 * n] = mode_prev2
                 _finish(out, stats, stats_prev, 2, cycles, ic_used)
+                _creep_limit(out, slip_tol)
                 return
         # linear growth (resonance without enough friction): increments repeat
         # (Coulomb-damped decay also repeats its increments: growth must be seen)
@@ -1512,8 +1743,21 @@ def simulate_point(r, beta, scene, settings, out, final):
                 final[2 * n] = start_phase(Xs, ctx[CTX_BETA], ctx, theta) if mode != 0 else 0
                 final[2 * n + 1] = theta
                 _finish(out, stats, stats_prev, 1, cycles, ic_used)
+                _creep_limit(out, slip_tol)
                 return
             shots_failed += 1
+            if shots_failed in (2, 4, 6):  # a slow point: full Newton from here
+                ok, Xs, used = newton_settle(
+                    X, mode, stats, ctx, work, section_rtol, ref, 30, theta
+                )
+                cycles += used
+                if ok:
+                    final[: 2 * n] = Xs
+                    final[2 * n] = start_phase(Xs, ctx[CTX_BETA], ctx, theta) if mode != 0 else 0
+                    final[2 * n + 1] = theta
+                    _finish(out, stats, stats_prev, 1, cycles, ic_used)
+                    _creep_limit(out, slip_tol)
+                    return
     _undetermined(out, NOT_CONVERGED, cycles, ic_used)
 
 

@@ -57,6 +57,31 @@ displacement with the other masses on the forced response of the held system;
 ``rest`` = everything at zero (used where the held system is resonant)."""
 IC_HELD = 0
 IC_REST = 1
+IC_RANDOM = 2
+"""Codes ``IC_RANDOM + k`` (k = 0, 1, ...): the k-th seeded random start, a state on
+the energy scale of the forced response (:func:`tasks.kernel._random_start`)."""
+
+SLIP_RTOL = 1e-7
+"""Creep threshold: a slip whose amplitude (half peak-to-peak of the contact's
+relative displacement) is below ``SLIP_RTOL * beta * c`` is not motion, ``c = b^T
+K^-1 b`` being the static compliance at the contact, so ``beta c`` is the static
+deflection the friction force produces. Such a slip changes the spring force at
+the contact by less than ``SLIP_RTOL`` of the friction force: the same as holding
+with beta changed by one part in 10^7. It is the same for every preset
+(docs/theory.md 3, creep). Genuine stick-slip has slips this small only within
+about 5e-4 of beta below the motion bound (the slip amplitude there is 0.4-10
+times the square of the relative distance to the bound), inside the tolerance of
+the traced boundaries."""
+CREEP_SLIP_RTOL = 1e-5
+"""A creep in progress: cycles whose slips stay below ``CREEP_SLIP_RTOL * beta * c``."""
+CREEP_FORCE_RTOL = 1e-3
+"""A stuck section state whose contact force can exceed beta by at most this
+fraction of beta, after ``CREEP_WINDOW`` cycles of slips below the creep slip
+bound of which most had no event at all (no orbit of period 1 or 2 does that),
+is no motion reached asymptotically."""
+CREEP_WINDOW = 20
+"""Consecutive cycles with slips below the creep threshold before the force
+excess is tested."""
 
 
 def name(code: int) -> str:

@@ -6,7 +6,7 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from tasks.regimes import INITIAL_CONDITIONS, cf_flag_attributes
+from tasks.regimes import INITIAL_CONDITIONS, NOT_COMPUTED, cf_flag_attributes
 
 #: Output fields of :func:`tasks.classify`, their dtypes and meanings (one home,
 #: reused by the study layer for netCDF variables).
@@ -42,6 +42,18 @@ FIELDS: dict[str, tuple[str, str]] = {
         "energy dissipated by the contact per excitation cycle (/ (k_1 Y^2): beta times "
         "the slip distance per cycle, docs/theory.md 2)",
     ),
+    "asymptotic": (
+        "bool",
+        "no motion reached asymptotically: slips shrank below the creep threshold "
+        "(tasks.regimes.SLIP_RTOL of the static friction deflection)",
+    ),
+    "regime_rest": ("int8", "regime reached from rest (-127 if rest was not a start)"),
+    "regimes_reached": (
+        "int8",
+        "regimes reached over all starts, bit mask: 1 no_motion, 2 stick_slip, "
+        "4 continuous, 8 undetermined",
+    ),
+    "start_dependent": ("bool", "two starts reached different (determined) regimes"),
 }
 
 #: CF attributes of the coordinates of a result (stored or in memory).
@@ -102,6 +114,12 @@ def field_attrs(name: str) -> dict[str, object]:
         attrs["comment"] = meaning
     if name == "regime":
         attrs.update(cf_flag_attributes())
+    elif name == "regime_rest":  # the regime codes, and NOT_COMPUTED where rest was no start
+        flags = cf_flag_attributes()
+        attrs["flag_values"] = np.concatenate(([NOT_COMPUTED], flags["flag_values"])).astype(
+            np.int8
+        )
+        attrs["flag_meanings"] = "not_computed " + flags["flag_meanings"]
     elif name in FLAGS:
         attrs.update(FLAGS[name])
     else:
@@ -130,6 +148,10 @@ class ClassifyResult:
     amplitude_relative: np.ndarray
     contact_force_amplitude: np.ndarray
     dissipation: np.ndarray
+    asymptotic: np.ndarray
+    regime_rest: np.ndarray
+    regimes_reached: np.ndarray
+    start_dependent: np.ndarray
 
     @classmethod
     def empty(cls, shape: tuple[int, ...], dof: int = 1) -> ClassifyResult:

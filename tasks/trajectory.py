@@ -137,7 +137,7 @@ def trajectory(
         rb = (np.array([r]), np.array([beta]))
         out, final = kernel.run_points(*rb, scene_args, args)
         design, _ = kernel.orbit_designs(*rb, scene_args, args, out, final, kernel.DESIGN_SAMPLES)
-        result = result_from_kernel(out, (), design, scene.contact == "base")
+        result = result_from_kernel(out, (), design, scene.contact == "base", codes=[args[9]])
         X0 = final[0, : 2 * n].copy()
         mode0 = int(final[0, 2 * n])
         theta = float(final[0, 2 * n + 1])
