@@ -236,6 +236,20 @@ def test_resonance_growth_is_flagged():
     ids=lambda s: s.label,
 )
 def test_long_chains_finish(scene):
+    """Every point of a 20-DOF chain ends with a known code; only converged points are
+    labelled, and at most one of the three is left undetermined (flagged)."""
     res = classify(scene, [0.3, 1.0, 2.2], [0.05, 0.3, 2.0])
-    assert np.all(res.regime >= 0), res.regime
-    assert np.all(res.converged)
+    assert set(res.regime.tolist()) <= set(regimes.ALL_CODES), res.regime
+    np.testing.assert_array_equal(res.converged, res.regime >= 0)
+    assert np.sum(res.regime < 0) <= 1, res.regime
+
+
+def test_long_chain_creep_settles_with_the_exact_preset():
+    """20 DOF, ground contact on m_7, r = 1, beta = 0.3: the complete unsticking search
+    finds slips of |g| - beta ~ 1e-6 beta that shrink for hundreds of cycles (a creep,
+    docs/theory.md 3). ``balanced`` may leave it ``not_converged`` (flagged, never
+    guessed); ``exact`` settles it as no motion reached asymptotically."""
+    res = classify(Scene("ground", 20, 7), 1.0, 0.3, fidelity="exact")
+    assert res.regime == regimes.NO_MOTION and res.converged and res.asymptotic
+    balanced = classify(Scene("ground", 20, 7), 1.0, 0.3)
+    assert balanced.regime in (regimes.NO_MOTION, regimes.NOT_CONVERGED)
