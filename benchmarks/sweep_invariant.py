@@ -22,16 +22,11 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from tasks import Scene, classify, trajectory  # noqa: E402
-from tasks.classifier import scene_modes_cached  # noqa: E402
+from tasks.classifier import scene_modes_cached
+from tasks.scene import CONFIGURATIONS  # noqa: E402
 
 CONFIGS = {
-    "sdof_ground": Scene("ground", 1),
-    "sdof_base": Scene("base", 1),
-    "2dof_ground_m1": Scene("ground", 2, 1),
-    "2dof_ground_m2": Scene("ground", 2, 2),
-    "2dof_base_m1": Scene("base", 2, 1),
-    "2dof_base_m2": Scene("base", 2, 2),
-    "2dof_mass": Scene("mass", 2, 1),
+    **CONFIGURATIONS,
     "5dof_ground_m3": Scene("ground", 5, 3, gamma=[1.5, 0.7, 1.2, 0.9], kappa=[0.8, 1.3, 1.0, 0.6]),
 }
 

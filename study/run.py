@@ -180,7 +180,9 @@ def connect(
                 processes=True,
                 host="127.0.0.1",
                 dashboard_address="127.0.0.1:0",
-                silence_logs=logging.ERROR,
+                # workers' own logs: a worker that outlives the scheduler at Ctrl-C
+                # logs heartbeat tracebacks; the run reports failures itself
+                silence_logs=logging.CRITICAL,
             )
         )
         try:

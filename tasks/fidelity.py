@@ -144,7 +144,8 @@ class Settings:
             )
 
     def to_dict(self) -> dict[str, object]:
-        return asdict(self)
+        """The settings as JSON-ready values (``starts`` as a list)."""
+        return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
 
 
 PRESETS: dict[str, Settings] = {

@@ -228,6 +228,19 @@ class Scene:
         return T, w
 
 
+#: The configurations of the paper (Sects. 2-4; the configs of tests/data), ratios 1:
+#: one home for the tests and benchmarks that sweep every configuration.
+CONFIGURATIONS: dict[str, Scene] = {
+    "sdof_ground": Scene("ground", 1),
+    "sdof_base": Scene("base", 1),
+    "2dof_ground_m1": Scene("ground", 2, 1),
+    "2dof_ground_m2": Scene("ground", 2, 2),
+    "2dof_base_m1": Scene("base", 2, 1),
+    "2dof_base_m2": Scene("base", 2, 2),
+    "2dof_mass": Scene("mass", 2, 1),
+}
+
+
 def stiffness_matrix(kappas: np.ndarray) -> np.ndarray:
     """Tridiagonal stiffness matrix of a chain fixed to the base (Eq. 69)."""
     kappas = np.asarray(kappas, dtype=float)
