@@ -34,6 +34,7 @@ from study.chunks import CHUNK_FORMAT, ScenePlan
 from study.compute import compute_chunk
 from study.errors import StudyFailed
 from study.store import WorkDir
+from study.watchdog import watched_batches, watched_gather
 from tasks.adaptive import (
     DEFAULT_VERIFY_MIN,
     Refinement,
@@ -108,13 +109,15 @@ def run_adaptive(
     verbose: bool = True,
     saved: list[int] | None = None,
     bar=None,
+    watchdog=None,
 ) -> list[VerificationSummary]:
     """Refine every missing plane of an adaptive scene, one wave of Dask tasks per level.
 
     ``saved[0]`` is incremented for every point list saved (for the message of
     an interrupted run); ``bar`` (a :class:`study.progress.Progress`) advances by a
-    plane's points when the plane is done. Returns the verification summaries of
-    the planes computed.
+    plane's points when the plane is done; ``watchdog`` (a
+    :class:`study.watchdog.Watchdog`) stops a wave that waits on a lost scheduler or
+    on no worker. Returns the verification summaries of the planes computed.
     """
     stream = stream if stream is not None else sys.stderr
     saved = saved if saved is not None else [0]
@@ -132,7 +135,7 @@ def run_adaptive(
 
         def simulate(idx: np.ndarray, ident: dict = ident, counts: list = counts) -> dict:
             out, n_reused, n_computed = _wave(
-                client, plan, ident, r, beta, idx, work, retries, saved
+                client, plan, ident, r, beta, idx, work, retries, saved, watchdog
             )
             counts[0] += n_reused
             counts[1] += n_computed
@@ -206,7 +209,7 @@ def _point_lists(plan, ident, r, beta, idx) -> list[tuple[str, slice, dict]]:
     return out
 
 
-def _wave(client, plan, ident, r, beta, idx, work, retries, saved):
+def _wave(client, plan, ident, r, beta, idx, work, retries, saved, watchdog=None):
     """Simulate the points ``idx`` (reusing saved point lists); their FIELDS arrays."""
     from distributed import as_completed
 
@@ -235,11 +238,11 @@ def _wave(client, plan, ident, r, beta, idx, work, retries, saved):
     )
     where = {f.key: (k, sl) for f, (k, sl, _) in zip(futures, todo, strict=True)}
     try:
-        for fut in as_completed(futures):
+        for fut in (f for batch in watched_batches(as_completed(futures), watchdog) for f in batch):
             key, sl = where[fut.key]
             try:
-                arrays = fut.result()
-            except KeyboardInterrupt:
+                arrays = watched_gather(client, [fut], watchdog)[0]
+            except (KeyboardInterrupt, StudyFailed):  # StudyFailed: the watchdog's verdict
                 raise
             except BaseException as exc:  # CancelledError is not an Exception
                 why = (

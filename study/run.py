@@ -353,7 +353,7 @@ def run_study(
                     grid = [p for p in plans if p.kind != "adaptive"]
                     compute_seconds = _compute(c, grid, work, bar, retries, saved, watchdog=dog)
                 for p in adaptive:
-                    run_adaptive(c, p, work, retries, stream, progress, saved, bar)
+                    run_adaptive(c, p, work, retries, stream, progress, saved, bar, watchdog=dog)
                 compute_wall = time.perf_counter() - t1
             bar.close()
         from study.netcdf import result_tree, write_result
