@@ -418,9 +418,12 @@ def _pending(plans: list[ScenePlan], work: WorkDir) -> Iterator[tuple[ScenePlan,
 
 def _failure(chunk: Chunk, exc: BaseException, retries: int, work: WorkDir) -> StudyFailed:
     from distributed import KilledWorker
+    from distributed.comm.core import CommClosedError
 
     if isinstance(exc, CancelledError):
         why = "was cancelled by the scheduler (restarted, or the connection to it was lost)"
+    elif isinstance(exc, CommClosedError | ConnectionError):
+        why = "could not be fetched: the connection to the scheduler was lost"
     elif isinstance(exc, KilledWorker):
         why = f"killed every worker that ran it: {exc}"
     else:

@@ -194,8 +194,8 @@ def test_cluster_without_workers_stops_after_the_timeout(tmp_path):
     assert not (tmp_path / "o.nc").exists()
 
 
-def _start_run(where: Path, *args: str) -> subprocess.Popen:
-    (where / "long.toml").write_text(LONG, encoding="utf-8")
+def _start_run(where: Path, *args: str, study: str = LONG) -> subprocess.Popen:
+    (where / "long.toml").write_text(study, encoding="utf-8")
     return subprocess.Popen(
         [sys.executable, "-m", "study", "run", "long.toml", *args],
         cwd=where,
@@ -295,7 +295,12 @@ def test_ctrl_c_during_local_cluster_start_one_line(tmp_path):
 def test_interrupted_run_names_the_older_result(tmp_path):
     older = tmp_path / "long.nc"
     older.write_bytes(b"an older result")
-    proc = _start_run(tmp_path, "-o", "long.nc", "--workers", "1", "--quiet", "--overwrite")
+    # four times the points of LONG with the `exact` preset: the run is still busy
+    # when the signal arrives, however fast the machine
+    longer = LONG.replace("num = 60", "num = 240").replace('"balanced"', '"exact"')
+    proc = _start_run(
+        tmp_path, "-o", "long.nc", "--workers", "1", "--quiet", "--overwrite", study=longer
+    )
     _wait_saved(older, 1, proc)
     proc.send_signal(signal.SIGTERM)
     rc, lines, err = _finish(proc)
