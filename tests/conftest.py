@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import subprocess
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -18,6 +20,29 @@ REFERENCE_CASES = DATA / "reference_cases.json"
 @pytest.fixture(scope="session")
 def reference_cases_path() -> Path:
     return REFERENCE_CASES
+
+
+@contextlib.contextmanager
+def local_cluster_client(n_workers: int = 2) -> Iterator:
+    """A client of a real LocalCluster: ``n_workers`` single-threaded worker processes on
+    127.0.0.1, no dashboard. The numba kernel is loaded (or compiled) here first, so the
+    workers load it from the cache."""
+    from distributed import Client, LocalCluster
+
+    from tasks import Scene, classify
+
+    classify(Scene("ground", 2), 1.0, 0.3, fidelity="fast")
+    with (
+        LocalCluster(
+            n_workers=n_workers,
+            threads_per_worker=1,
+            processes=True,
+            host="127.0.0.1",
+            dashboard_address=None,
+        ) as cluster,
+        Client(cluster) as client,
+    ):
+        yield client
 
 
 @pytest.fixture

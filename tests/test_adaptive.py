@@ -18,6 +18,7 @@ import io
 import numpy as np
 import pytest
 import xarray as xr
+from conftest import local_cluster_client
 
 from analysis.adaptive import adaptive_map, closed_form_hint, curve_hint
 from study import Study
@@ -229,24 +230,12 @@ def test_adaptive_scene_validation(study_file, edit, field):
 
 @pytest.mark.cluster
 def test_adaptive_study_on_local_cluster_resumes_after_interruption(tmp_path, monkeypatch):
-    from distributed import Client, LocalCluster
-
     import study.adaptive as sa
     from study import run_study
 
     study = Study.from_toml(_write(tmp_path / "adaptive.toml", ADAPTIVE))
     out = tmp_path / "adaptive.nc"
-    classify(Scene("ground", 2), np.array([1.0]), np.array([0.3]), fidelity="fast")  # warm cache
-    with (
-        LocalCluster(
-            n_workers=2,
-            threads_per_worker=1,
-            processes=True,
-            host="127.0.0.1",
-            dashboard_address=None,
-        ) as cluster,
-        Client(cluster) as client,
-    ):
+    with local_cluster_client(2) as client:
         real_wave = sa._wave
         calls = [0]
 

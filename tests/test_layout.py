@@ -13,6 +13,7 @@ import matplotlib
 import numpy as np
 import pytest
 import xarray as xr
+from conftest import local_cluster_client
 
 from study import Study, run_study
 from tasks import Scene, classify
@@ -35,19 +36,7 @@ def reduced(name: str, n_r: int = 14, n_beta: int = 9) -> Study:
 
 @pytest.fixture(scope="module")
 def client():
-    from distributed import Client, LocalCluster
-
-    classify(Scene("ground", 2), np.array([1.0]), np.array([0.3]))  # kernels cached for workers
-    with (
-        LocalCluster(
-            n_workers=2,
-            threads_per_worker=1,
-            processes=True,
-            host="127.0.0.1",
-            dashboard_address=None,
-        ) as cluster,
-        Client(cluster) as c,
-    ):
+    with local_cluster_client(2) as c:
         yield c
 
 

@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import xarray as xr
+from conftest import local_cluster_client
 from test_study_cluster import LONG, _env, dask_cluster
 
 from study import Study
@@ -120,19 +121,7 @@ def _corrupt(files: list[Path]) -> dict[str, Path]:
 @pytest.fixture(scope="module")
 def local_client():
     """A real LocalCluster: one worker process on 127.0.0.1."""
-    from distributed import Client, LocalCluster
-
-    classify(Scene("ground", 2), 1.0, 0.3, fidelity="fast")  # warm the numba cache
-    with (
-        LocalCluster(
-            n_workers=1,
-            threads_per_worker=1,
-            processes=True,
-            host="127.0.0.1",
-            dashboard_address="127.0.0.1:0",
-        ) as cluster,
-        Client(cluster) as client,
-    ):
+    with local_cluster_client(1) as client:
         yield client
 
 
