@@ -21,9 +21,12 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from tasks import Scene, classify, trajectory  # noqa: E402
+from tasks import Scene, classify  # noqa: E402
 from tasks.classifier import scene_modes_cached
 from tasks.scene import CONFIGURATIONS  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+from test_orbit_invariant import invariant  # noqa: E402
 
 CONFIGS = {
     **CONFIGURATIONS,
@@ -32,36 +35,9 @@ CONFIGS = {
 
 
 def orbit_violation(scene: Scene, r: float, beta: float, fidelity: str, samples: int = 4000):
-    """Worst violation of the orbit invariant on the converged orbit of one point.
-
-    Returns ``(g_excess, v_flips)``: ``max |g| / beta`` over the stick phases
-    (sampled densely, events excluded) and the number of slip phases where the
-    sampled contact velocity takes both signs beyond rounding.
-    """
-    tr = trajectory(scene, r, beta, fidelity=fidelity)
-    modes = scene_modes_cached(scene)
-    b = scene.contact_vector()
-    p = modes.load(r)
-    K = scene.stiffness_matrix()
-    worst = 0.0
-    flips = 0
-    span = tr.tau[-1] - tr.tau[0]
-    for i in range(len(tr.tau) - 1):
-        t0, t1 = tr.tau[i], tr.tau[i + 1]
-        if t1 - t0 <= 0.0:
-            continue
-        k = max(8, int(samples * (t1 - t0) / span))
-        tau = np.linspace(t0, t1, k + 2)[1:-1]
-        x, xd = tr.sample(tau)
-        if tr.mode[i] == 0:
-            g = (p[None, :] * np.cos(tau)[:, None] - x @ K.T) @ modes.g_load
-            worst = max(worst, float(np.max(np.abs(g))) / beta)
-        else:
-            v = xd @ b
-            scale = max(float(np.max(np.abs(v))), 1e-300)
-            if np.any(tr.mode[i] * v < -1e-9 * scale):
-                flips += 1
-    return worst, flips
+    """``(max |g| / beta over stick phases, slip phases whose velocity changes sign)``:
+    the independent check of ``tests/test_orbit_invariant.py`` (one home)."""
+    return invariant(scene, r, beta, fidelity, samples)
 
 
 def main() -> None:
