@@ -100,6 +100,10 @@ ORBIT_MAX_SAMPLES = 4096.0
 # rounding of g's terms, as in :func:`never_unsticks` (else a tangential touch of
 # |g| = beta at a no-motion boundary unsticks on rounding noise).
 STICK_RTOL = 1e-12
+# Sections a slow point's Newton settle tries (:func:`settle_at_phases`).
+SETTLE_PHASES = 4
+# held_margin must exceed this fraction of beta to decide no motion (rounding of g_h).
+HELD_MARGIN_RTOL = 1e-9
 
 
 @njit(cache=True)
@@ -1128,16 +1132,19 @@ def _shoot(X0, mode, stats, ctx, work, rtol, floor, max_newton, theta):
         R = y1 - y0
         scale = max(_max_abs(X1), 1e-300)
         res = _max_abs(R)
-        if res <= rtol * max(scale, floor):
+        try:
+            step = np.linalg.solve(J, -R)
+        except Exception:  # singular: no isolated fixed point (e.g. resonance)
+            return False, X0, cycles
+        # converged when both the residual and the Newton step (the distance to
+        # the fixed point; far larger than the residual when a multiplier is
+        # near 1) are within rtol of the motion
+        if res <= rtol * max(scale, floor) and _max_abs(step) <= rtol * max(scale, floor):
             dP = J.copy()
             for i in range(dim):
                 dP[i, i] += 1.0
             radius = np.max(np.abs(np.linalg.eigvals(dP.astype(np.complex128))))
             return radius <= 1.0 + 1e-6, X0, cycles
-        try:
-            step = np.linalg.solve(J, -R)
-        except Exception:  # singular: no isolated fixed point (e.g. resonance)
-            return False, X0, cycles
         # trust region: a fixed point far beyond the current motion is not a
         # settled transient but a (near-)singular map, e.g. resonant growth
         if not np.all(np.isfinite(step)) or _max_abs(step) > 10.0 * scale:
@@ -1191,8 +1198,10 @@ def newton_settle(X0, mode, stats, ctx, work, rtol, floor, max_iter, theta):
     Broyden-updated shooting of :func:`_shoot` fails its line search. Works in
     the chart of ``mode`` (:func:`_reduce`); an iterate may leave the chart for a
     step (its image is projected back), but the fixed point must lie in it. A
-    fixed point is accepted only if its residual is below ``rtol`` of the motion
-    (or of ``floor``) and it is not unstable (spectral radius of the Jacobian at
+    fixed point is accepted only if its residual and the Newton step from it (the
+    distance to the fixed point, far larger than the residual when a multiplier
+    is near 1) are below ``rtol`` of the motion (or of ``floor``) and it is not
+    unstable (spectral radius of the Jacobian at
     the fixed point at most 1 + 1e-6), so it is an attractor, reached from the
     point's own trajectory. Costs ``dim + 1`` periods per step.
 
@@ -1221,7 +1230,12 @@ def newton_settle(X0, mode, stats, ctx, work, rtol, floor, max_iter, theta):
         if used < 0 or not np.all(np.isfinite(J)):
             return False, X, cycles + dim
         cycles += used
-        if _max_abs(R) <= rtol * max(scale, floor) and _same_chart(m1, mode):
+        try:
+            step = np.linalg.solve(J, -R)
+        except Exception:  # singular: no isolated fixed point
+            return False, X, cycles
+        tol = rtol * max(scale, floor)
+        if _max_abs(R) <= tol and _max_abs(step) <= tol and _same_chart(m1, mode):
             dP = J.copy()
             for i in range(dim):
                 dP[i, i] += 1.0
@@ -1230,14 +1244,46 @@ def newton_settle(X0, mode, stats, ctx, work, rtol, floor, max_iter, theta):
                 return False, X, cycles
             _cycle(X, _phase_of(X, mode, b), theta, stats, ctx, work, theta)
             return True, X, cycles + 1
-        try:
-            step = np.linalg.solve(J, -R)
-        except Exception:  # singular: no isolated fixed point
-            return False, X, cycles
         if not np.all(np.isfinite(step)) or _max_abs(step) > 100.0 * max(scale, floor):
             return False, X, cycles
         y = y + step
     return False, _expand(y, mode, n, w, T), cycles
+
+
+@njit(cache=True)
+def settle_at_phases(X, mode, stick_start, stats, ctx, work, rtol, floor, theta):
+    """:func:`newton_settle` from the section at ``theta``, then from sections moved
+    by a quarter, a half and three quarters of the period.
+
+    The Poincare map of a slow point can be smooth at one phase and cut by an
+    event (a stop or a reversal that moves with the iterate) at another, where
+    Newton's method with difference Jacobians stalls. The trajectory is carried
+    to each new section (one part of a period); the fixed point is accepted with
+    the same conditions (residual, not unstable) at whichever section finds it.
+
+    Returns ``(success, X, mode, theta, cycles_used)``: the fixed point, its phase
+    and its section; on success ``stats`` holds the statistics of the verified
+    period.
+    """
+    used_total = 0
+    Xa = X
+    mode_a = mode
+    start_a = stick_start
+    theta_a = theta
+    for j in range(SETTLE_PHASES):
+        if j > 0:
+            target = theta_a + TWO_PI / SETTLE_PHASES
+            Xa, mode_a, start_a = _advance(Xa, mode_a, start_a, stats, ctx, work, theta_a, target)
+            if stats[ST_STATUS] != STATUS_OK:
+                break
+            theta_a = target - TWO_PI * math.floor(target / TWO_PI)
+            start_a -= target - theta_a
+        ok, Xs, used = newton_settle(Xa, mode_a, stats, ctx, work, rtol, floor, 30, theta_a)
+        used_total += used
+        if ok:
+            mode_s = start_phase(Xs, ctx[CTX_BETA], ctx, theta_a) if mode_a != 0 else 0
+            return True, Xs, mode_s, theta_a, used_total
+    return False, X, mode, theta, used_total
 
 
 @njit(cache=True)
@@ -1338,25 +1384,14 @@ def _context(r, beta, scene, settings):
     work = (np.zeros(n), np.zeros(n), np.zeros(m), np.zeros(m), np.zeros(2 * m))
     # Held start: contact at d0 = 0, the rest on the forced response of the
     # held system at tau = 0 (from rest if the held system is resonant).
+    X_held, held_exists = _held_response(seg_stick, phi_s, T, n)
     ic_used = initial_condition
     X = np.zeros(2 * n)
     if initial_condition == IC_HELD or initial_condition >= IC_RANDOM:
-        zeta = np.zeros(m)
-        for k in range(m):
-            den = seg_stick[OMEGA, k] ** 2 - 1.0
-            if seg_stick[LOAD_COS, k] == 0.0:
-                continue  # mode not loaded: no forced response
-            if abs(den) < 1e-9 * max(seg_stick[OMEGA, k] ** 2, 1.0):
-                ic_used = IC_REST
-                break
-            zeta[k] = seg_stick[LOAD_COS, k] / den
-        if ic_used != IC_REST:
-            for i in range(m):
-                qi = 0.0
-                for k in range(m):
-                    qi += phi_s[i, k] * zeta[k]
-                for j in range(n):
-                    X[j] += T[j, i] * qi
+        if held_exists:
+            X = X_held
+        else:
+            ic_used = IC_REST
     if initial_condition >= IC_RANDOM:
         X = _random_start(X, gamma, K, p, r, beta, initial_condition - IC_RANDOM, settings[11])
         ic_used = initial_condition
@@ -1364,6 +1399,53 @@ def _context(r, beta, scene, settings):
     g0 = _contact_force(p, 1.0, K, X[:n], g_load)
     mode = 0 if abs(g0) <= beta else (1 if g0 > 0.0 else -1)
     return ctx, work, X, mode, ic_used
+
+
+@njit(cache=True)
+def _held_response(seg_stick, phi_s, T, n):
+    """The held steady state at ``tau = 0``: contact held at zero relative
+    displacement, the other coordinates on the forced response of the held
+    system (``x_h(tau) = x_h(0) cos tau``). Returns ``(X, exists)``; it does not
+    exist when a loaded mode of the held system is resonant."""
+    m = seg_stick.shape[1]
+    X = np.zeros(2 * n)
+    zeta = np.zeros(m)
+    for k in range(m):
+        den = seg_stick[OMEGA, k] ** 2 - 1.0
+        if seg_stick[LOAD_COS, k] == 0.0:
+            continue  # mode not loaded: no forced response
+        if abs(den) < 1e-9 * max(seg_stick[OMEGA, k] ** 2, 1.0):
+            return X, False
+        zeta[k] = seg_stick[LOAD_COS, k] / den
+    for i in range(m):
+        qi = 0.0
+        for k in range(m):
+            qi += phi_s[i, k] * zeta[k]
+        for j in range(n):
+            X[j] += T[j, i] * qi
+    return X, True
+
+
+@njit(cache=True)
+def held_margin(ctx):
+    """``beta - max_tau |g_h|``: how far inside the friction limit the held steady
+    state stays, or ``-inf`` where the held system is resonant.
+
+    The held steady state (:func:`_held_response`) needs the contact force
+    ``g_h(tau) = g_h(0) cos tau``. When the margin ``delta`` is positive, every
+    start reaches no motion (docs/theory.md 3, "every start reaches no motion
+    above the motion bound"): Coulomb friction is monotone, so the energy of the
+    difference between any motion and the held one decreases by at least
+    ``delta |v|`` per unit time while the contact slides, and the total future
+    sliding is at most that energy over ``delta``.
+    """
+    seg_stick = ctx[CTX_SEG_STICK]
+    n = ctx[CTX_P].shape[0]
+    X, exists = _held_response(seg_stick, ctx[CTX_PHI_S], ctx[CTX_T], n)
+    if not exists:
+        return -np.inf
+    g0 = _contact_force(ctx[CTX_P], 1.0, ctx[CTX_K], X[:n], ctx[CTX_G_LOAD])
+    return ctx[CTX_BETA] - abs(g0)
 
 
 @njit(cache=True)
@@ -1458,6 +1540,21 @@ def _asymptotic_no_motion(out, stats, cycles, ic_used):
     out[OUT_STOPS] = 0.0
     out[OUT_AMP] = 0.5 * (stats[ST_DMAX] - stats[ST_DMIN])
     out[OUT_STICK] = stats[ST_STUCK_TIME] / TWO_PI
+    out[OUT_PERIOD] = 1.0
+    out[OUT_IC] = ic_used
+    out[OUT_ASYMPTOTIC] = 1.0
+
+
+@njit(cache=True)
+def _no_motion_by_margin(out, ic_used):
+    """No motion reached from a start off the held steady state, decided by
+    :func:`held_margin` without simulating (``cycles = 0``, flagged asymptotic)."""
+    out[OUT_REGIME] = NO_MOTION
+    out[OUT_CONVERGED] = 1.0
+    out[OUT_CYCLES] = 0.0
+    out[OUT_STOPS] = 0.0
+    out[OUT_AMP] = 0.0
+    out[OUT_STICK] = 1.0
     out[OUT_PERIOD] = 1.0
     out[OUT_IC] = ic_used
     out[OUT_ASYMPTOTIC] = 1.0
@@ -1595,6 +1692,15 @@ def simulate_point(r, beta, scene, settings, out, final):
         out[OUT_STICK] = 0.0
         out[OUT_PERIOD] = 1.0
         out[OUT_IC] = ic_used
+        return
+    if ic_used != IC_HELD and held_margin(ctx) > HELD_MARGIN_RTOL * beta:
+        # every start reaches no motion (held_margin): the limit is the held
+        # steady state plus a free vibration of the held system that the
+        # contact never feels enough to slide
+        X_held, _ = _held_response(ctx[CTX_SEG_STICK], ctx[CTX_PHI_S], ctx[CTX_T], n)
+        final[: 2 * n] = X_held
+        final[2 * n] = 0
+        _no_motion_by_margin(out, ic_used)
         return
     if _resonant_growth(ctx[CTX_SEG_SLIP], ctx[CTX_F_R2], beta):
         _undetermined(out, UNBOUNDED, 0, ic_used)
@@ -1747,13 +1853,14 @@ def simulate_point(r, beta, scene, settings, out, final):
                 return
             shots_failed += 1
             if shots_failed in (2, 4, 6):  # a slow point: full Newton from here
-                ok, Xs, used = newton_settle(
-                    X, mode, stats, ctx, work, section_rtol, ref, 30, theta
+                ok, Xs, mode_s, theta_s, used = settle_at_phases(
+                    X, mode, stick_start, stats, ctx, work, section_rtol, ref, theta
                 )
                 cycles += used
                 if ok:
+                    theta = theta_s
                     final[: 2 * n] = Xs
-                    final[2 * n] = start_phase(Xs, ctx[CTX_BETA], ctx, theta) if mode != 0 else 0
+                    final[2 * n] = mode_s
                     final[2 * n + 1] = theta
                     _finish(out, stats, stats_prev, 1, cycles, ic_used)
                     _creep_limit(out, slip_tol)
