@@ -58,7 +58,14 @@ def panels() -> list[tuple[str, Scene, np.ndarray, np.ndarray]]:
     return out
 
 
-def run(label: str, output: Path, only: str | None, save: Path | None, starts: list[str]) -> None:
+def run(
+    label: str,
+    output: Path,
+    only: str | None,
+    save: Path | None,
+    starts: list[str],
+    n_random: int = 0,
+) -> None:
     rows = []
     raw: dict[str, np.ndarray] | None = {} if save else None
     classify(Scene("ground", dof=2), 0.5, 0.3)  # compile / load the cache
@@ -86,6 +93,20 @@ def run(label: str, output: Path, only: str | None, save: Path | None, starts: l
         if len(regime) == 2:
             both = (regime["held"] >= 0) & (regime["rest"] >= 0)
             row["held_rest_differ"] = int((both & (regime["held"] != regime["rest"])).sum())
+        if n_random:
+            # held, rest and n_random seeded random starts on every 2nd r and beta
+            sub = (slice(None, None, 2), slice(None, None, 2))
+            t0 = time.perf_counter()
+            res = classify(
+                scene, r[sub], beta[sub], starts=("held", "rest"), n_random=n_random, seed=1
+            )
+            row["random_points"] = int(r[sub].size)
+            row["random_seconds"] = time.perf_counter() - t0
+            row["random_start_dependent"] = int(np.asarray(res.start_dependent).sum())
+            undetermined_bit = 1 << 3
+            row["random_undetermined_some_start"] = int(
+                ((np.asarray(res.regimes_reached) & undetermined_bit) > 0).sum()
+            )
         rows.append(row)
         print(json.dumps(row), flush=True)
     output.write_text(json.dumps({"label": label, "machine": machine(), "rows": rows}, indent=1))
@@ -119,13 +140,16 @@ def main() -> None:
     ap.add_argument("--only", default=None, help="run only panels whose name contains this")
     ap.add_argument("--save", type=Path, default=None, help="also save the raw maps (.npz)")
     ap.add_argument("--starts", default="held,rest", help="comma-separated: held,rest")
+    ap.add_argument(
+        "--random", type=int, default=0, help="also count start dependence with K random starts"
+    )
     ap.add_argument("--code", default=None, help="import tasks from this checkout instead")
     ap.add_argument("--compare", nargs=2, type=Path, metavar=("BEFORE", "AFTER"))
     args = ap.parse_args()
     if args.compare:
         compare(*args.compare)
     else:
-        run(args.label, args.output, args.only, args.save, args.starts.split(","))
+        run(args.label, args.output, args.only, args.save, args.starts.split(","), args.random)
 
 
 if __name__ == "__main__":
