@@ -45,6 +45,11 @@ from tasks.result import FIELDS, field_shape
 
 #: Default coarsest spacing, in grid steps: the smallest feature the map is sure to find.
 DEFAULT_COARSE_STEP = 16
+#: Hinted cells are split, even when uniform, down to this size in grid steps: a
+#: feature along a hint at least this wide gets a simulated point, and is then
+#: followed to one step like any boundary. Below it only disagreement splits,
+#: so a hint far from any boundary costs no simulation at the finest level.
+HINT_CELL = 2
 #: Default verification sample: this fraction of the inferred points ...
 DEFAULT_VERIFY_FRACTION = 0.005
 #: ... but at least this many (or all the inferred points if there are fewer).
@@ -207,8 +212,9 @@ class Refinement:
                 i0, i1, j0, j1 = box
                 if i1 - i0 <= 1 and j1 - j0 <= 1:
                     continue  # every point of the cell is a simulated corner
-                im = (i0 + i1) // 2 if i1 - i0 > 1 else None
-                jm = (j0 + j1) // 2 if j1 - j0 > 1 else None
+                split_r, split_b = self._split_axes(box)
+                im = (i0 + i1) // 2 if split_r else None
+                jm = (j0 + j1) // 2 if split_b else None
                 rs = [(i0, im), (im, i1)] if im is not None else [(i0, i1)]
                 bs = [(j0, jm), (jm, j1)] if jm is not None else [(j0, j1)]
                 for a, b in rs:
@@ -222,6 +228,27 @@ class Refinement:
             if new:
                 idx = np.unique(np.ravel_multi_index(tuple(np.array(new).T), self.shape))
                 return idx.astype(np.int64)
+
+    def _split_axes(self, box: tuple[int, int, int, int]) -> tuple[bool, bool]:
+        """Which axes to halve a cell along: only the axes its corners disagree across.
+
+        A boundary crossing the cell between its left and right corners (labels
+        change along r) is followed by halving along r only, down to one step,
+        then along beta: about two simulations per grid row the boundary crosses,
+        instead of the five of a split into four at every level. A cell whose
+        corners all agree (refined for a disagreeing inner point or a hint) is
+        split along both axes.
+        """
+        i0, i1, j0, j1 = box
+        k = self.key
+        along_r = k[i0, j0] != k[i1, j0] or k[i0, j1] != k[i1, j1]
+        along_b = k[i0, j0] != k[i0, j1] or k[i1, j0] != k[i1, j1]
+        if not (along_r or along_b):
+            along_r = along_b = True
+        wide, tall = i1 - i0 > 1, j1 - j0 > 1
+        split_r = wide and (along_r or not tall)
+        split_b = tall and (along_b or not wide)
+        return split_r, split_b
 
     def accept(self, idx: np.ndarray, results: Mapping[str, np.ndarray]) -> None:
         """Store the simulated fields of the points ``idx`` (flat indices)."""
@@ -249,10 +276,11 @@ class Refinement:
         return bool(keys.size == 0 or (keys == keys[0]).all())
 
     def _hinted(self, box: tuple[int, int, int, int]) -> bool:
+        """The cell holds a hinted point and is larger than :data:`HINT_CELL` steps."""
         if self.hint is None:
             return False
         i0, i1, j0, j1 = box
-        if i1 - i0 <= 1 and j1 - j0 <= 1:
+        if i1 - i0 <= HINT_CELL and j1 - j0 <= HINT_CELL:
             return False
         return bool(self.hint[i0 : i1 + 1, j0 : j1 + 1].any())
 

@@ -102,6 +102,7 @@ ORBIT_MAX_SAMPLES = 4096.0
 STICK_RTOL = 1e-12
 # Sections a slow point's Newton settle tries (:func:`settle_at_phases`).
 SETTLE_PHASES = 4
+SETTLE_STEPS = 30
 # held_margin must exceed this fraction of beta to decide no motion (rounding of g_h).
 HELD_MARGIN_RTOL = 1e-9
 
@@ -1132,19 +1133,16 @@ def _shoot(X0, mode, stats, ctx, work, rtol, floor, max_newton, theta):
         R = y1 - y0
         scale = max(_max_abs(X1), 1e-300)
         res = _max_abs(R)
-        try:
-            step = np.linalg.solve(J, -R)
-        except Exception:  # singular: no isolated fixed point (e.g. resonance)
-            return False, X0, cycles
-        # converged when both the residual and the Newton step (the distance to
-        # the fixed point; far larger than the residual when a multiplier is
-        # near 1) are within rtol of the motion
-        if res <= rtol * max(scale, floor) and _max_abs(step) <= rtol * max(scale, floor):
+        if res <= rtol * max(scale, floor):
             dP = J.copy()
             for i in range(dim):
                 dP[i, i] += 1.0
             radius = np.max(np.abs(np.linalg.eigvals(dP.astype(np.complex128))))
             return radius <= 1.0 + 1e-6, X0, cycles
+        try:
+            step = np.linalg.solve(J, -R)
+        except Exception:  # singular: no isolated fixed point (e.g. resonance)
+            return False, X0, cycles
         # trust region: a fixed point far beyond the current motion is not a
         # settled transient but a (near-)singular map, e.g. resonant growth
         if not np.all(np.isfinite(step)) or _max_abs(step) > 10.0 * scale:
@@ -1198,10 +1196,8 @@ def newton_settle(X0, mode, stats, ctx, work, rtol, floor, max_iter, theta):
     Broyden-updated shooting of :func:`_shoot` fails its line search. Works in
     the chart of ``mode`` (:func:`_reduce`); an iterate may leave the chart for a
     step (its image is projected back), but the fixed point must lie in it. A
-    fixed point is accepted only if its residual and the Newton step from it (the
-    distance to the fixed point, far larger than the residual when a multiplier
-    is near 1) are below ``rtol`` of the motion (or of ``floor``) and it is not
-    unstable (spectral radius of the Jacobian at
+    fixed point is accepted only if its residual is below ``rtol`` of the motion
+    (or of ``floor``) and it is not unstable (spectral radius of the Jacobian at
     the fixed point at most 1 + 1e-6), so it is an attractor, reached from the
     point's own trajectory. Costs ``dim + 1`` periods per step.
 
@@ -1230,12 +1226,7 @@ def newton_settle(X0, mode, stats, ctx, work, rtol, floor, max_iter, theta):
         if used < 0 or not np.all(np.isfinite(J)):
             return False, X, cycles + dim
         cycles += used
-        try:
-            step = np.linalg.solve(J, -R)
-        except Exception:  # singular: no isolated fixed point
-            return False, X, cycles
-        tol = rtol * max(scale, floor)
-        if _max_abs(R) <= tol and _max_abs(step) <= tol and _same_chart(m1, mode):
+        if _max_abs(R) <= rtol * max(scale, floor) and _same_chart(m1, mode):
             dP = J.copy()
             for i in range(dim):
                 dP[i, i] += 1.0
@@ -1244,6 +1235,10 @@ def newton_settle(X0, mode, stats, ctx, work, rtol, floor, max_iter, theta):
                 return False, X, cycles
             _cycle(X, _phase_of(X, mode, b), theta, stats, ctx, work, theta)
             return True, X, cycles + 1
+        try:
+            step = np.linalg.solve(J, -R)
+        except Exception:  # singular: no isolated fixed point
+            return False, X, cycles
         if not np.all(np.isfinite(step)) or _max_abs(step) > 100.0 * max(scale, floor):
             return False, X, cycles
         y = y + step
@@ -1251,9 +1246,10 @@ def newton_settle(X0, mode, stats, ctx, work, rtol, floor, max_iter, theta):
 
 
 @njit(cache=True)
-def settle_at_phases(X, mode, stick_start, stats, ctx, work, rtol, floor, theta):
-    """:func:`newton_settle` from the section at ``theta``, then from sections moved
-    by a quarter, a half and three quarters of the period.
+def settle_at_phases(X, mode, stick_start, stats, ctx, work, rtol, floor, theta, n_phases):
+    """:func:`newton_settle` from the section at ``theta`` (up to 30 steps), then
+    from ``n_phases - 1`` sections moved by ``1 / n_phases`` of the period each
+    (up to ``SETTLE_STEPS`` steps each: Newton converges in a few or not at all).
 
     The Poincare map of a slow point can be smooth at one phase and cut by an
     event (a stop or a reversal that moves with the iterate) at another, where
@@ -1270,15 +1266,16 @@ def settle_at_phases(X, mode, stick_start, stats, ctx, work, rtol, floor, theta)
     mode_a = mode
     start_a = stick_start
     theta_a = theta
-    for j in range(SETTLE_PHASES):
+    for j in range(n_phases):
         if j > 0:
-            target = theta_a + TWO_PI / SETTLE_PHASES
+            target = theta_a + TWO_PI / n_phases
             Xa, mode_a, start_a = _advance(Xa, mode_a, start_a, stats, ctx, work, theta_a, target)
             if stats[ST_STATUS] != STATUS_OK:
                 break
             theta_a = target - TWO_PI * math.floor(target / TWO_PI)
             start_a -= target - theta_a
-        ok, Xs, used = newton_settle(Xa, mode_a, stats, ctx, work, rtol, floor, 30, theta_a)
+        steps = 30 if j == 0 else SETTLE_STEPS
+        ok, Xs, used = newton_settle(Xa, mode_a, stats, ctx, work, rtol, floor, steps, theta_a)
         used_total += used
         if ok:
             mode_s = start_phase(Xs, ctx[CTX_BETA], ctx, theta_a) if mode_a != 0 else 0
@@ -1854,7 +1851,16 @@ def simulate_point(r, beta, scene, settings, out, final):
             shots_failed += 1
             if shots_failed in (2, 4, 6):  # a slow point: full Newton from here
                 ok, Xs, mode_s, theta_s, used = settle_at_phases(
-                    X, mode, stick_start, stats, ctx, work, section_rtol, ref, theta
+                    X,
+                    mode,
+                    stick_start,
+                    stats,
+                    ctx,
+                    work,
+                    section_rtol,
+                    ref,
+                    theta,
+                    SETTLE_PHASES if shots_failed == 2 else 1,
                 )
                 cycles += used
                 if ok:

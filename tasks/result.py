@@ -44,8 +44,10 @@ FIELDS: dict[str, tuple[str, str]] = {
     ),
     "asymptotic": (
         "bool",
-        "no motion reached asymptotically: slips shrank below the creep threshold "
-        "(tasks.regimes.SLIP_RTOL of the static friction deflection)",
+        "no motion reached asymptotically: from a start off the held steady state above "
+        "the motion bound (every start reaches no motion, docs/theory.md 3), or slips "
+        "shrank below the creep threshold (tasks.regimes.SLIP_RTOL of the static friction "
+        "deflection)",
     ),
     "regime_rest": ("int8", "regime reached from rest (-127 if rest was not a start)"),
     "regimes_reached": (
