@@ -1,11 +1,11 @@
 """Closed-form hints for adaptive maps (:mod:`tasks.adaptive`).
 
 The closed-form boundaries (:func:`analysis.boundaries`) say where a boundary is
-expected; an adaptive map refines every cell they cross down to one grid step,
-so that a thin feature that follows them (a strip at an antiresonance, a peak at
-a natural frequency) is not lost between coarse nodes. They never decide a
-label: every label of the map comes from a simulation (or is inferred from
-simulated corners that agree).
+expected; an adaptive map splits every cell they cross down to a few grid steps
+(tasks.adaptive.HINT_CELL), so that a thin feature that follows them (a strip
+at an antiresonance, a peak at a natural frequency) is not lost between coarse
+nodes. They never decide a label: every label of the map comes from a
+simulation (or is inferred from simulated corners that agree).
 """
 
 from __future__ import annotations
@@ -86,7 +86,7 @@ def adaptive_map(
     """:func:`tasks.adaptive.adaptive_map` with the closed-form boundaries as refinement hints.
 
     ``hint`` is the :func:`analysis.boundaries` method whose curves are refined
-    down to one grid step ("exact" or "paper"), or None for no hint.
+    down to tasks.adaptive.HINT_CELL grid steps ("exact" or "paper"), or None for no hint.
     """
     mask = None if hint is None else closed_form_hint(scene, r, beta, hint)
     return _adaptive_map(

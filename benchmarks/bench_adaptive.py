@@ -31,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from analysis.adaptive import adaptive_map
+from analysis.report import percent
 from study.definition import Study
 from tasks import classify
 
@@ -131,13 +132,13 @@ def main(argv: list[str] | None = None) -> int:
         print(
             f"| {label} | {res.simulated_points:,} | {100 * res.simulated_fraction:.2f} "
             f"| {len(res.levels)} | {ad_s:.1f} | {dense_s:.1f} | {dense_s / ad_s:.1f} "
-            f"| {100 * (1 - diff / n):.3f} % | {diff} | {det} | {int((dense < 0).sum())} "
+            f"| {percent(n - diff, n, 3)} | {diff} | {det} | {int((dense < 0).sum())} "
             f"| {v.agree} / {v.sampled} |",
             flush=True,
         )
     print(
         f"| all {len(chosen)} panels | {tot_sim:,} | {100 * tot_sim / tot_pts:.2f} | | | | "
-        f"| {100 * (1 - tot_diff / tot_pts):.3f} % | {tot_diff} | {tot_det} | | |"
+        f"| {percent(tot_pts - tot_diff, tot_pts, 3)} | {tot_diff} | {tot_det} | | |"
     )
     return 0
 
