@@ -102,7 +102,7 @@ ORBIT_MAX_SAMPLES = 4096.0
 STICK_RTOL = 1e-12
 # Sections a slow point's Newton settle tries (:func:`settle_at_phases`).
 SETTLE_PHASES = 4
-SETTLE_STEPS = 30
+SETTLE_CYCLES = 150
 # held_margin must exceed this fraction of beta to decide no motion (rounding of g_h).
 HELD_MARGIN_RTOL = 1e-9
 
@@ -1249,7 +1249,9 @@ def newton_settle(X0, mode, stats, ctx, work, rtol, floor, max_iter, theta):
 def settle_at_phases(X, mode, stick_start, stats, ctx, work, rtol, floor, theta, n_phases):
     """:func:`newton_settle` from the section at ``theta`` (up to 30 steps), then
     from ``n_phases - 1`` sections moved by ``1 / n_phases`` of the period each
-    (up to ``SETTLE_STEPS`` steps each: Newton converges in a few or not at all).
+    (about ``SETTLE_CYCLES`` periods each, i.e. 30 Newton steps for 2 DOF and 13
+    for 5 DOF). Used with one phase for the slow-point settles of the iteration
+    and with ``SETTLE_PHASES`` as the last resort when ``max_cycles`` is spent.
 
     The Poincare map of a slow point can be smooth at one phase and cut by an
     event (a stop or a reversal that moves with the iterate) at another, where
@@ -1274,7 +1276,8 @@ def settle_at_phases(X, mode, stick_start, stats, ctx, work, rtol, floor, theta,
                 break
             theta_a = target - TWO_PI * math.floor(target / TWO_PI)
             start_a -= target - theta_a
-        steps = 30 if j == 0 else SETTLE_STEPS
+        # the extra sections get about SETTLE_CYCLES periods each (dim + 1 per step)
+        steps = 30 if j == 0 else max(4, SETTLE_CYCLES // (X.shape[0] + 1))
         ok, Xs, used = newton_settle(Xa, mode_a, stats, ctx, work, rtol, floor, steps, theta_a)
         used_total += used
         if ok:
@@ -1860,7 +1863,7 @@ def simulate_point(r, beta, scene, settings, out, final):
                     section_rtol,
                     ref,
                     theta,
-                    SETTLE_PHASES if shots_failed == 2 else 1,
+                    1,
                 )
                 cycles += used
                 if ok:
@@ -1871,6 +1874,22 @@ def simulate_point(r, beta, scene, settings, out, final):
                     _finish(out, stats, stats_prev, 1, cycles, ic_used)
                     _creep_limit(out, slip_tol)
                     return
+    if shooting:
+        # last resort before giving up: Newton from four sections of the period
+        # (a map cut by an event at one section can be smooth at another); it
+        # runs only for points the budget could not settle, so they may end with
+        # up to SETTLE_PHASES * SETTLE_CYCLES periods beyond max_cycles
+        ok, Xs, mode_s, theta_s, used = settle_at_phases(
+            X, mode, stick_start, stats, ctx, work, section_rtol, ref, theta, SETTLE_PHASES
+        )
+        cycles += used
+        if ok:
+            final[: 2 * n] = Xs
+            final[2 * n] = mode_s
+            final[2 * n + 1] = theta_s
+            _finish(out, stats, stats_prev, 1, cycles, ic_used)
+            _creep_limit(out, slip_tol)
+            return
     _undetermined(out, NOT_CONVERGED, cycles, ic_used)
 
 
