@@ -162,14 +162,16 @@ def test_slow_points_next_to_the_antiresonance_settle():
 def test_slow_column_settles_from_another_section_phase():
     """Fig. 4 panel (gamma, kappa) = (1, 0.5), grid column r = 0.70723 next to the
     antiresonance 0.70711: Newton's method fails from the section the iteration
-    picks and succeeds from a section a quarter period later
-    (tasks.kernel.settle_at_phases). The settled orbit is the one the plain
+    picks and succeeds, as the last resort after max_cycles, from a section a
+    quarter period later (tasks.kernel.settle_at_phases). The settled orbit is the one the plain
     iteration of the exact preset reaches after ~19,000 cycles."""
     scene = Scene("ground", 2, 1, gamma=1.0, kappa=0.5)
     r = 0.02 + (2.5 - 0.02) * 69 / 249
     beta = np.array([0.6061, 0.7576])
     res = classify(scene, r, beta)
-    assert np.all(res.regime == regimes.STICK_SLIP) and np.all(res.cycles < 2000)
+    assert np.all(res.regime == regimes.STICK_SLIP)
+    # settled by the last resort, once the 2000 cycles of balanced were spent
+    assert np.all((res.cycles > 2000) & (res.cycles <= 2000 + 4 * kernel.SETTLE_CYCLES))
     slow = classify(scene, r, beta, fidelity="exact", shooting=False, max_cycles=60000)
     assert np.all(slow.cycles > 5000)  # the plain iteration is slow here
     assert np.array_equal(slow.regime, res.regime)
