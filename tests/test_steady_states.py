@@ -164,7 +164,7 @@ def test_slow_column_settles_from_another_section_phase():
     antiresonance 0.70711: Newton's method fails from the section the iteration
     picks and succeeds, as the last resort after max_cycles, from a section a
     quarter period later (tasks.kernel.settle_at_phases). The settled orbit is the one the plain
-    iteration of the exact preset reaches after ~19,000 cycles."""
+    iteration of the exact preset reaches after 15,000-24,000 cycles."""
     scene = Scene("ground", 2, 1, gamma=1.0, kappa=0.5)
     r = 0.02 + (2.5 - 0.02) * 69 / 249
     beta = np.array([0.6061, 0.7576])
@@ -176,9 +176,9 @@ def test_slow_column_settles_from_another_section_phase():
     assert np.all(slow.cycles > 5000)  # the plain iteration is slow here
     assert np.array_equal(slow.regime, res.regime)
     assert np.array_equal(slow.stops_per_cycle, res.stops_per_cycle)
-    # balanced's section tolerance is 1e-8 of a motion ~400 times the slip
-    assert np.allclose(slow.slip_amplitude, res.slip_amplitude, rtol=2e-2)
-    assert np.allclose(slow.stick_fraction, res.stick_fraction, atol=1e-3)
+    # the same orbit: slip amplitude to 1e-5 (measured 6e-6), stick fraction to 1e-6
+    assert np.allclose(slow.slip_amplitude, res.slip_amplitude, rtol=1e-4)
+    assert np.allclose(slow.stick_fraction, res.stick_fraction, atol=1e-5)
 
 
 def test_start_settings_are_validated():
