@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from study.trace import TRACE_FIELDS
 from tasks.adaptive import ADAPTIVE_FIELDS
 from tasks.result import FIELDS, MASS_FIELDS
 
@@ -62,7 +63,8 @@ def data_shape(arrays: dict[str, np.ndarray]) -> tuple[int, ...]:
     shapes = {
         np.shape(v)[:-1] if k in MASS_FIELDS else np.shape(v)
         for k, v in arrays.items()
-        if k in FIELDS or k in ADAPTIVE_FIELDS  # not bookkeeping (an adaptive plane's levels)
+        # result fields only, not bookkeeping (``seconds``, an adaptive plane's levels)
+        if k in FIELDS or k in ADAPTIVE_FIELDS or k in TRACE_FIELDS
     }
     if len(shapes) != 1:
         raise ValueError(f"chunk arrays of different shapes: {sorted(shapes)}")
