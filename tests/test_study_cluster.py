@@ -216,8 +216,13 @@ def assert_progress_complete(stderr: str, n_points: int) -> None:
 
 
 def assert_fields_equal(node: xr.Dataset, index: dict, expected) -> None:
-    """Every result field of ``node`` at ``index`` equals the ClassifyResult ``expected``."""
+    """Every result field of ``node`` at ``index`` equals the ClassifyResult ``expected``;
+    ``regime_rest`` only where rest was a start (else it is not written: all -127)."""
+    rest = (expected.regime_rest != regimes.NOT_COMPUTED).any()
+    assert ("regime_rest" in node.data_vars) == rest
     for name in FIELDS:
+        if name == "regime_rest" and not rest:
+            continue
         da = node[name].isel(index) if index else node[name]
         da = da.transpose(*(d for d in ("point", "r", "beta", "mass") if d in da.dims))
         np.testing.assert_array_equal(da.values, getattr(expected, name), err_msg=name)
@@ -543,6 +548,33 @@ def test_trace_study_writes_its_result(tmp_path, warm_kernels):
         assert np.all(np.abs(traced - exact) <= step + 1e-3 * exact), (var, traced, exact)
     # the closed forms written beside the traced boundaries are the same closed forms
     np.testing.assert_allclose(ground["beta_motion_exact"], exact_m, rtol=1e-12)
+
+
+STARTS = """
+[study]
+name = "starts"
+fidelity = "fast"
+
+[settings]
+starts = ["held", "rest"]
+
+[[scene]]
+contact = "ground"
+dof = 2
+r = {start = 0.3, stop = 2.1, num = 6}
+beta = {start = 0.05, stop = 1.0, num = 4}
+"""
+
+
+def test_regime_rest_is_written_only_where_rest_is_a_start(tmp_path, warm_kernels):
+    write_study(tmp_path / "starts.toml", STARTS)
+    assert_ok(run_cli(tmp_path, "run", "starts.toml", "-o", "starts.nc", "--workers", "1"))
+    ds = xr.open_dataset(tmp_path / "starts.nc")
+    assert ds["regime_rest"].dtype == np.int8
+    assert not (ds["regime_rest"] == regimes.NOT_COMPUTED).any()
+    R, B = np.meshgrid(ds["r"].values, ds["beta"].values, indexing="ij")
+    expected = classify(Scene("ground", 2), R, B, "fast", starts=("held", "rest"))
+    assert_fields_equal(ds, {}, expected)
 
 
 def test_remote_cluster_via_scheduler_file(tmp_path, remote):
