@@ -37,8 +37,10 @@ import numpy as np
 import xarray as xr
 
 from study.definition import Study
+from study.errors import StudyFailed
 from study.plans import ScenePlan
-from study.store import TMP_SUFFIX, WorkDir, fsync_dir
+from study.preflight import older_result_note
+from study.store import TMP_SUFFIX, WorkDir, fsync_dir, os_cause
 from study.trace import TRACE_FIELDS
 from tasks import regimes
 from tasks.adaptive import ADAPTIVE_FIELDS
@@ -354,6 +356,13 @@ def write_result(
             os.fsync(f.fileno())
         os.replace(tmp, output)
         fsync_dir(output.parent)
+    except (OSError, RuntimeError) as exc:  # no space, permission, I/O (NetCDF: HDF error)
+        if isinstance(exc, StudyFailed):
+            raise
+        raise StudyFailed(
+            f"cannot write {tmp}: {os_cause(exc)}; every chunk is kept in {work.path}; "
+            f"{older_result_note(output)}; rerun the same command to write it"
+        ) from None
     finally:
         netCDF4.set_chunk_cache(*cache)
         tmp.unlink(missing_ok=True)

@@ -38,7 +38,7 @@ from study.errors import StudyError, StudyFailed, StudyInterrupted
 from study.firstrun import compile_once
 from study.preflight import check_run, default_workers, older_result_note
 from study.progress import Progress
-from study.store import WorkDir, temporary_outputs
+from study.store import WorkDir, os_cause, temporary_outputs
 from study.watchdog import (
     DEFAULT_WORKER_TIMEOUT,
     Watchdog,
@@ -276,6 +276,11 @@ def run_study(
         finished = True
     except KeyboardInterrupt:
         raise StudyInterrupted(_interrupted(work, output, done, survey)) from None
+    except OSError as exc:  # the OS refused the work folder: one line, nothing lost
+        where = exc.filename or work.path
+        raise StudyFailed(
+            f"cannot use {where}: {os_cause(exc)}; {older_result_note(output)}"
+        ) from None
     finally:
         _release(work, finished)
     wall = time.perf_counter() - t0
@@ -324,7 +329,11 @@ def _work(study: Study, output, overwrite: bool, stream: TextIO):
     output = Path(output)
     _check_runnable(study, output, overwrite)
     work = WorkDir(output, report)
-    if not work.lock():
+    try:
+        locked = work.lock()
+    except OSError as exc:
+        raise StudyError("-o", f"cannot lock {work.lock_path}: {os_cause(exc)}") from None
+    if not locked:
         raise StudyError(
             "-o", f"another run is writing {output} (its work folder {work.path} is locked)"
         )

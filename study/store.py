@@ -61,6 +61,12 @@ def temporary_outputs(output: str | os.PathLike) -> list[Path]:
     return sorted(output.parent.glob(f".{glob_escape(output.name)}.*{TMP_SUFFIX}"))
 
 
+def os_cause(exc: BaseException) -> str:
+    """The cause of an OS error in a few words (``No space left on device``)."""
+    text = getattr(exc, "strerror", None) or str(exc) or type(exc).__name__
+    return " ".join(str(text).split())
+
+
 def discard(path: Path) -> None:
     """Remove whatever file system entry is at ``path`` (file, link, FIFO, directory)."""
     if path.is_dir() and not path.is_symlink():
@@ -93,14 +99,20 @@ class WorkDir:
         key, simulator version and checksum (:func:`study.verify.with_metadata`)."""
         arrays = with_metadata(key, arrays)
         final = self.chunk_path(scene, key)
-        final.parent.mkdir(parents=True, exist_ok=True)
         tmp = final.with_name(f".{final.name}.{os.getpid()}{TMP_SUFFIX}")
         try:
+            final.parent.mkdir(parents=True, exist_ok=True)
             with open(tmp, "wb") as f:
                 np.savez(f, **arrays)
                 f.flush()
                 os.fsync(f.fileno())
             os.replace(tmp, final)
+        except OSError as exc:  # no space, permission, I/O error: one line, nothing lost
+            tmp.unlink(missing_ok=True)
+            raise StudyFailed(
+                f"cannot save {final}: {os_cause(exc)}; the chunks saved so far are kept "
+                f"in {self.path}, rerun to resume"
+            ) from None
         except BaseException:  # KeyboardInterrupt included: never leave the temporary file
             tmp.unlink(missing_ok=True)
             raise
@@ -212,7 +224,10 @@ class WorkDir:
 
     def unlock(self) -> None:
         if self._lock_fd is not None:
-            self.lock_path.unlink(missing_ok=True)  # while holding it (see lock)
+            try:
+                self.lock_path.unlink(missing_ok=True)  # while holding it (see lock)
+            except OSError:  # e.g. the folder became read-only: the flock still goes
+                pass
             os.close(self._lock_fd)  # releases the flock
             self._lock_fd = None
 
