@@ -11,7 +11,6 @@ Heavy modules (Dask, xarray) are imported only when used, so workers that run
 :func:`study.compute.compute_chunk` import little.
 """
 
-from study.definition import Axis, Points, SceneSpec, Study
 from study.errors import StudyError, StudyFailed, StudyInterrupted
 
 __all__ = [
@@ -27,8 +26,14 @@ __all__ = [
 
 
 def __getattr__(name: str):
+    # imported on first use: ``python -m study`` starts in milliseconds, so a Ctrl-C
+    # right after the start reaches the command's handler (one line, no traceback)
     if name == "run_study":
         from study.run import run_study
 
         return run_study
+    if name in ("Axis", "Points", "SceneSpec", "Study"):
+        import study.definition
+
+        return getattr(study.definition, name)
     raise AttributeError(name)

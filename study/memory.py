@@ -15,8 +15,9 @@ class MemoryWork:
 
     path = "memory"
 
-    def __init__(self) -> None:
+    def __init__(self, report=None) -> None:
         self._chunks: dict[tuple[str, str], dict[str, np.ndarray]] = {}
+        self.report = report or (lambda line: None)
 
     def has(self, scene: str, key: str) -> bool:
         return (scene, key) in self._chunks
@@ -24,13 +25,19 @@ class MemoryWork:
     def save(self, scene: str, key: str, arrays: dict[str, np.ndarray]) -> None:
         self._chunks[(scene, key)] = {k: np.asarray(v) for k, v in arrays.items()}
 
-    def load(self, scene: str, key: str) -> dict[str, np.ndarray]:
+    def load(self, scene: str, key: str, expected=None) -> dict[str, np.ndarray]:
         return self._chunks[(scene, key)]
+
+    def reuse(self, scene: str, key: str, expected) -> bool:
+        return self.has(scene, key)
+
+    def keys(self, scene: str) -> list[str]:
+        return sorted(k for s, k in self._chunks if s == scene)
 
     def count(self) -> int:
         return len(self._chunks)
 
-    def clean(self) -> int:
+    def scan(self, scenes: list[str]) -> int:
         return 0
 
     def lock(self) -> bool:

@@ -11,11 +11,14 @@ attributes and provenance (study text, resolved settings, versions, history).
 A single scene is written at the root (``xr.open_dataset``), several scenes as
 groups named by scene (``xr.open_datatree``).
 
-Memory stays flat in the number of points: the file is first written with
-lazily generated fill values (dask, synchronous scheduler, large blocks), then
-every chunk is read from the work folder and written into its block with
-netCDF4, one chunk at a time. Everything goes to a temporary file that replaces
-the output only when complete.
+Every scene kind is written the same way, through its plan (:mod:`study.chunks`:
+layout, coordinates, and the stored units as blocks of its variables). Memory
+stays flat in the number of points and of scenes: each scene's group is first
+written with lazily generated fill values (dask, synchronous scheduler, large
+blocks), one scene at a time (``mode="a"``), then every unit is read from the
+work folder and written into its block with netCDF4, one unit at a time.
+Everything goes to a temporary file that replaces the output only when
+complete.
 """
 
 from __future__ import annotations
@@ -33,9 +36,11 @@ import netCDF4
 import numpy as np
 import xarray as xr
 
-from study.chunks import ScenePlan
 from study.definition import Study
-from study.store import TMP_SUFFIX, WorkDir, fsync_dir
+from study.errors import StudyFailed
+from study.plans import ScenePlan
+from study.preflight import older_result_note
+from study.store import TMP_SUFFIX, WorkDir, fsync_dir, os_cause
 from study.trace import TRACE_FIELDS
 from tasks import regimes
 from tasks.adaptive import ADAPTIVE_FIELDS
@@ -136,35 +141,14 @@ def _boundaries(scene, r: np.ndarray, method: str) -> tuple[np.ndarray, np.ndarr
 
 
 def _boundary_vars(plan: ScenePlan, axes: dict[str, np.ndarray]) -> dict[str, xr.Variable]:
-    spec = plan.spec
     out: dict[str, xr.Variable] = {}
     for method in BOUNDARY_METHODS:
-        if spec.points is not None:
-            dims: tuple[str, ...] = ("point",)
-            cont = np.empty(len(spec.points))
-            motion = np.empty(len(spec.points))
-            gk = np.stack(
-                [
-                    axes.get("gamma", np.full_like(axes["r"], np.nan)),
-                    axes.get("kappa", np.full_like(axes["r"], np.nan)),
-                ],
-                axis=1,
-            )
-            for g, k in np.unique(gk, axis=0):
-                sel = np.all((gk == (g, k)) | (np.isnan(gk) & np.isnan([g, k])), axis=1)
-                ratios = {n: float(v) for n, v in (("gamma", g), ("kappa", k)) if not np.isnan(v)}
-                cont[sel], motion[sel] = _boundaries(
-                    spec.scene_at(**ratios), axes["r"][sel], method
-                )
-        else:
-            sweeps = list(spec.sweeps)
-            dims = (*sweeps, "r")
-            shape = (*spec.sweep_shape, len(axes["r"]))
-            cont = np.empty(shape)
-            motion = np.empty(shape)
-            for idx in np.ndindex(*spec.sweep_shape):
-                ratios = {n: float(axes[n][i]) for n, i in zip(sweeps, idx, strict=True)}
-                cont[idx], motion[idx] = _boundaries(spec.scene_at(**ratios), axes["r"], method)
+        groups = plan.boundary_groups(axes)
+        dims, shape = next(groups)
+        cont = np.empty(shape)
+        motion = np.empty(shape)
+        for index, scene, r in groups:
+            cont[index], motion[index] = _boundaries(scene, r, method)
         for base, values in (("beta_continuous", cont), ("beta_motion", motion)):
             out[f"{base}_{method}"] = xr.Variable(
                 dims,
@@ -178,34 +162,13 @@ def _boundary_vars(plan: ScenePlan, axes: dict[str, np.ndarray]) -> dict[str, xr
 
 
 # --------------------------------------------------------------------------- skeleton
-def _data_layout(plan: ScenePlan) -> tuple[tuple[str, ...], tuple[int, ...], dict[str, str]]:
-    """Dims, shape and {variable: dtype} of the per-point (or per-r) result variables
-    (per-mass fields get the dim ``mass`` on top: :func:`_var_layout`)."""
-    spec = plan.spec
-    if plan.kind == "points":
-        return ("point",), (len(spec.points),), {k: dt for k, (dt, _) in FIELDS.items()}
-    sweeps = tuple(spec.sweeps)
-    if plan.kind == "trace":
-        return (
-            (*sweeps, "r"),
-            (*spec.sweep_shape, len(spec.r)),
-            {name: dt for name, (dt, _) in TRACE_FIELDS.items()},
-        )
-    dims = (*sweeps, "beta", "r")
-    shape = (*spec.sweep_shape, len(spec.beta), len(spec.r))
-    variables = {k: dt for k, (dt, _) in FIELDS.items()}
-    if plan.kind == "adaptive":  # a grid plus `simulated` and `verification`
-        variables |= {k: dt for k, (dt, _) in ADAPTIVE_FIELDS.items()}
-    return dims, shape, variables
-
-
 def _var_layout(
-    name: str, dims: tuple[str, ...], shape: tuple[int, ...], dof: int
+    name: str, dims: tuple[str, ...], shape: tuple[int, ...], dof: int, planar: bool
 ) -> tuple[tuple[str, ...], tuple[int, ...]]:
     """Dims and shape of one variable: per-mass fields have ``mass`` before the plane."""
     if name not in MASS_FIELDS:
         return dims, shape
-    k = len(dims) - (1 if dims[-1] == "point" else 2)
+    k = len(dims) - (2 if planar else 1)
     return (*dims[:k], "mass", *dims[k:]), (*shape[:k], dof, *shape[k:])
 
 
@@ -291,19 +254,12 @@ def scene_dataset(plan: ScenePlan, study: Study) -> tuple[xr.Dataset, dict[str, 
     """The Dataset of one scene with lazy fill values, and its netCDF encoding."""
     spec = plan.spec
     axes = plan.axes()
-    dims, shape, variables = _data_layout(plan)
-    grid = plan.kind in ("grid", "adaptive")
-    coords: dict[str, xr.Variable] = {}
-    if plan.kind == "points":
-        coords["point"] = xr.Variable("point", np.arange(len(spec.points)), COORD_ATTRS["point"])
-        for name in ("r", "beta", "gamma", "kappa"):
-            if name in axes:
-                coords[name] = xr.Variable("point", axes[name], COORD_ATTRS[name])
-    else:
-        for name in (*spec.sweeps, "beta", "r"):
-            if name == "beta" and plan.kind == "trace":
-                continue
-            coords[name] = xr.Variable(name, axes[name], COORD_ATTRS[name])
+    dims, shape, variables = plan.layout()
+    grid = plan.planar
+    coords = {
+        name: xr.Variable(dim, values, COORD_ATTRS[name])
+        for name, (dim, values) in plan.coordinates(axes).items()
+    }
     for name, value in scalar_ratios(spec).items():
         if name not in coords:
             coords[name] = xr.Variable((), value, COORD_ATTRS[name])
@@ -314,7 +270,7 @@ def scene_dataset(plan: ScenePlan, study: Study) -> tuple[xr.Dataset, dict[str, 
     data_vars: dict[str, xr.Variable] = {}
     encoding: dict[str, dict] = {name: {"_FillValue": None} for name in coords}
     for name, dt in variables.items():
-        vdims, vshape = _var_layout(name, dims, shape, spec.dof)
+        vdims, vshape = _var_layout(name, dims, shape, spec.dof, grid)
         enc: dict[str, object] = {
             "zlib": True,
             "complevel": 4,
@@ -342,29 +298,8 @@ def scene_dataset(plan: ScenePlan, study: Study) -> tuple[xr.Dataset, dict[str, 
         "fidelity": study.fidelity,
         "settings": json.dumps(study.settings.to_dict(), sort_keys=True),
     }
-    if plan.kind == "trace":
-        attrs["beta_range"] = json.dumps([float(axes["beta"].min()), float(axes["beta"].max())])
+    attrs.update(plan.extra_attrs(axes))
     return xr.Dataset(data_vars, coords, attrs), encoding
-
-
-def chunk_writes(plan: ScenePlan, chunk, arrays: dict[str, np.ndarray]):
-    """``(variable, index, values)`` that put one chunk's arrays into the scene's variables.
-
-    The work chunks are ``(r, beta)`` blocks (per-mass fields ``(r, beta, mass)``);
-    the stored layout is ``(..., [mass,] beta, r)``.
-    """
-    _, _, variables = _data_layout(plan)
-    for name in variables:
-        values = np.asarray(arrays[name])
-        if plan.kind == "grid":
-            index = (*chunk.sweep, slice(*chunk.cols), slice(*chunk.rows))
-            values = values.T  # (r, beta[, mass]) -> ([mass,] beta, r)
-        else:
-            index = (*chunk.sweep, slice(*chunk.rows))
-            values = values.T  # (point[, mass]) -> ([mass,] point); 1-D unchanged
-        if name in MASS_FIELDS:
-            index = (*index[: len(chunk.sweep)], slice(None), *index[len(chunk.sweep) :])
-        yield name, index, values
 
 
 def root_attrs(gattrs: dict[str, str], names: list[str]) -> dict[str, str]:
@@ -388,88 +323,79 @@ def write_result(
     output: str | os.PathLike,
     command: str | None = None,
 ) -> Path:
-    """Assemble every chunk in ``work`` into ``output`` (atomically).
+    """Assemble every unit in ``work`` into ``output`` (atomically), one scene at a time.
 
-    Every chunk of every plan must be in the work folder.
+    Every unit of every plan must be in the work folder.
     """
     output = Path(output)
     tmp = output.with_name(f".{output.name}.{os.getpid()}{TMP_SUFFIX}")
     cache = netCDF4.get_chunk_cache()
     netCDF4.set_chunk_cache(NC_CACHE_BYTES, NC_CACHE_SLOTS)  # for every variable opened below
+    gattrs = global_attrs(study, command)
+    grouped = len(plans) > 1
     try:
-        built = {p.spec.name: scene_dataset(p, study) for p in plans}
-        gattrs = global_attrs(study, command)
-        with dask.config.set(scheduler="synchronous"):
-            if len(built) == 1:
-                ((ds, enc),) = built.values()
+        if grouped:  # the root: attributes only; each scene is a group appended below
+            with netCDF4.Dataset(tmp, "w", format="NETCDF4") as nc:
+                nc.setncatts(root_attrs(gattrs, [p.spec.name for p in plans]))
+        for plan in plans:
+            ds, enc = scene_dataset(plan, study)
+            if not grouped:
                 ds = ds.assign_attrs({**gattrs, **ds.attrs})
-                ds.to_netcdf(tmp, engine="netcdf4", format="NETCDF4", encoding=enc)
-            else:
-                tree = xr.DataTree.from_dict(
-                    {"/": xr.Dataset(attrs=root_attrs(gattrs, list(built)))}
-                    | {f"/{n}": ds for n, (ds, _) in built.items()}
-                )
-                tree.to_netcdf(
+            with dask.config.set(scheduler="synchronous"):
+                ds.to_netcdf(
                     tmp,
+                    mode="a" if grouped else "w",
+                    group=plan.spec.name if grouped else None,
                     engine="netcdf4",
                     format="NETCDF4",
-                    encoding={f"/{n}": enc for n, (_, enc) in built.items()},
+                    encoding=enc,
                 )
-        _fill_chunks(tmp, plans, work, grouped=len(built) > 1)
+            del ds
+        _fill_units(tmp, plans, work, grouped)
         with open(tmp, "rb+") as f:  # on disk before it takes the output's name
             os.fsync(f.fileno())
         os.replace(tmp, output)
         fsync_dir(output.parent)
+    except (OSError, RuntimeError) as exc:  # no space, permission, I/O (NetCDF: HDF error)
+        if isinstance(exc, StudyFailed):
+            raise
+        raise StudyFailed(
+            f"cannot write {tmp}: {os_cause(exc)}; every chunk is kept in {work.path}; "
+            f"{older_result_note(output)}; rerun the same command to write it"
+        ) from None
     finally:
         netCDF4.set_chunk_cache(*cache)
         tmp.unlink(missing_ok=True)
     return output
 
 
-def _fill_chunks(path: Path, plans: list[ScenePlan], work: WorkDir, grouped: bool) -> None:
-    """Write every chunk's arrays into its block of the file (one chunk in memory)."""
+def _fill_units(path: Path, plans: list[ScenePlan], work: WorkDir, grouped: bool) -> None:
+    """Write every unit's arrays into its block of the file (one unit in memory)."""
     with netCDF4.Dataset(path, "a") as nc:
         nc.set_auto_maskandscale(False)
         for plan in plans:
             group = nc.groups[plan.spec.name] if grouped else nc
-            if plan.kind == "adaptive":
-                from study.adaptive import fill_adaptive
-
-                fill_adaptive(group, plan, work, _data_layout(plan)[2])
-                continue
-            for chunk in plan.chunks():
-                arrays = work.load(plan.spec.name, chunk.key)
-                for name, index, values in chunk_writes(plan, chunk, arrays):
-                    var = group.variables[name]
-                    var[index] = values.astype(var.dtype, copy=False)
+            for name, index, values in plan.writes(work):
+                var = group.variables[name]
+                var[index] = values.astype(var.dtype, copy=False)
+            group.setncatts(plan.result_attrs(work))
 
 
 def result_tree(study: Study, plans: list[ScenePlan], work) -> xr.DataTree:
     """The result in memory, laid out as the file :func:`write_result` writes.
 
-    ``work`` holds every chunk (``load(scene, key)``); a single scene is the
+    ``work`` holds every unit (``load(scene, key)``); a single scene is the
     root of the tree, several scenes are its children.
     """
     built = {}
     for plan in plans:
         ds, _ = scene_dataset(plan, study)
-        _, _, variables = _data_layout(plan)
+        variables = plan.layout()[2]
         filled = {name: np.array(ds[name].data.compute()) for name in variables}  # own memory
-        if plan.kind == "adaptive":
-            from study.adaptive import plane_writes, result_attrs
-
-            for name, index, values in plane_writes(plan, work, variables):
-                if name is None:
-                    ds = ds.assign_attrs(result_attrs(plan, values))
-                else:
-                    filled[name][index] = values
-        else:
-            for chunk in plan.chunks():
-                arrays = work.load(plan.spec.name, chunk.key)
-                for name, index, values in chunk_writes(plan, chunk, arrays):
-                    filled[name][index] = values
+        for name, index, values in plan.writes(work):
+            filled[name][index] = values
         ds = ds.assign({name: ds[name].copy(data=filled[name]) for name in variables})
-        built[plan.spec.name] = ds
+        built[plan.spec.name] = ds.assign_attrs(plan.result_attrs(work))
     gattrs = global_attrs(study)
     if len(built) == 1:
         ((ds,),) = [tuple(built.values())]

@@ -37,6 +37,14 @@ MAX_WORKER_TIMEOUT = 86_400.0
 _NAME_OVERHEAD = 20
 
 
+def default_workers() -> int:
+    """Cores available to this process."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
 def _kind(mode: int) -> str | None:
     """What a non-regular file is, or None for a regular file."""
     for test, what in (
@@ -153,8 +161,6 @@ def check_run(
     worker_timeout: float,
 ) -> None:
     """Every check of :func:`study.run.run_study`'s inputs that needs no cluster."""
-    from study.run import default_workers
-
     local = client is None and not (scheduler or scheduler_file)
     check_options(
         workers=workers,

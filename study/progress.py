@@ -52,6 +52,8 @@ class Progress:
         self.latest = self.t0
         #: Seconds left as learnt by a :class:`study.cost.CostTracker` (None: from the rate).
         self.eta_seconds = None
+        #: Points done at the last line shown (the final line is not repeated).
+        self.shown = -1
 
     def start(self) -> None:
         """Start the clock now (after the cluster is up), so the rate counts computing only."""
@@ -96,10 +98,12 @@ class Progress:
         )
 
     def close(self) -> None:
-        if self.enabled:
+        """The final line (on a log, not again if the last line shown said the same)."""
+        if self.enabled and (self.tty or self.shown != self.done):
             self._emit(self.line(), final=True)
 
     def _emit(self, text: str, final: bool) -> None:
+        self.shown = self.done
         if self.tty:
             self.stream.write("\r\x1b[K" + text + ("\n" if final else ""))
         else:

@@ -1,15 +1,11 @@
-"""Running a study on Dask: submit chunks, persist results as they finish, assemble.
+"""Running a study: plans, the cluster, the work folder, the result file.
 
-The client submits at most a window of chunks at a time (a few per worker
-thread, resized as workers come and go) and refills it from ``as_completed``,
-so neither the client nor the scheduler ever holds the whole study. Workers
-return numpy arrays and never write files; the client writes each finished
-chunk atomically into the work folder (``OUT.nc.work/``, :mod:`study.store`)
-before counting it done. A rerun skips every chunk already on disk (resume); a
-killed worker costs only the tasks it was running or holding, which the
-scheduler reruns elsewhere; tasks that raise are retried (``retries``). After
-the last chunk the result file is assembled (:mod:`study.netcdf`), written
-atomically, and only then is the work folder removed.
+:func:`run_study` drives every scene kind the same way: the study becomes one
+plan per scene (:mod:`study.chunks`), each plan verifies what the work folder
+(``OUT.nc.work/``, :mod:`study.store`) holds already, the missing units of work
+are computed on Dask (:mod:`study.drive`), and the result file is assembled
+(:mod:`study.netcdf`), written atomically; only then is the work folder
+removed. A rerun reuses every verified unit (resume).
 
 Where the computing happens:
 
@@ -27,8 +23,6 @@ import logging
 import os
 import sys
 import time
-from collections.abc import Iterator
-from concurrent.futures import CancelledError
 from contextlib import contextmanager, nullcontext
 from dataclasses import dataclass
 from pathlib import Path
@@ -36,30 +30,23 @@ from typing import TextIO
 
 from distributed.diagnostics.plugin import WorkerPlugin
 
-from study.chunks import Chunk, ScenePlan, plan
-from study.compute import compute_chunk
+from study.chunks import ScenePlan, plan
 from study.cost import CostTracker
 from study.definition import Study
+from study.drive import Driven, drive
 from study.errors import StudyError, StudyFailed, StudyInterrupted
 from study.firstrun import compile_once
-from study.preflight import check_run, older_result_note
+from study.preflight import check_run, default_workers, older_result_note
 from study.progress import Progress
-from study.store import WorkDir, temporary_outputs
-from study.verify import chunk_shape
+from study.store import WorkDir, os_cause, temporary_outputs
 from study.watchdog import (
     DEFAULT_WORKER_TIMEOUT,
     Watchdog,
     quiet_dask_logs,
     start_deferring_sigint,
-    watched_batches,
-    watched_gather,
 )
 
-#: Chunks kept in flight per worker thread (at least ``MIN_WINDOW`` in all).
-WINDOW_PER_THREAD = 4
-MIN_WINDOW = 16
-#: Seconds between two looks at the number of worker threads (window size).
-WINDOW_REFRESH = 5.0
+__all__ = ["RunSummary", "connect", "default_workers", "run_study"]
 
 
 @dataclass
@@ -78,14 +65,6 @@ class RunSummary:
     compute_wall_seconds: float = 0.0
     #: Wall seconds spent assembling the result file.
     write_seconds: float = 0.0
-
-
-def default_workers() -> int:
-    """Cores available to this process."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        return os.cpu_count() or 1
 
 
 class IgnoreSigint(WorkerPlugin):
@@ -236,15 +215,15 @@ def run_study(
     overwrite: bool = False,
     worker_timeout: float = DEFAULT_WORKER_TIMEOUT,
 ) -> RunSummary:
-    """Compute every missing chunk of ``study`` and write the result to ``output``.
+    """Compute every missing unit of ``study`` and write the result to ``output``.
 
     Parameters
     ----------
     study : Study
         A validated study.
     output : path, optional
-        The netCDF file to write; chunks are kept in ``output + ".work"``.
-        Without it nothing is written: the chunks are kept in memory and the
+        The netCDF file to write; units are kept in ``output + ".work"``.
+        Without it nothing is written: the units are kept in memory and the
         labelled result is returned (an ``xarray.DataTree`` laid out as the
         file would be: one scene at the root, several as children).
     client : distributed.Client, optional
@@ -267,10 +246,11 @@ def run_study(
         unreachable scheduler, a run of the same output already in progress,
         or an unavailable feature (nothing is written).
     StudyInterrupted
-        Ctrl-C (KeyboardInterrupt): finished chunks stay in the work folder,
+        Ctrl-C (KeyboardInterrupt): finished units stay in the work folder,
         no result file.
     StudyFailed
-        A chunk failed on every retry, or the scheduler cancelled it.
+        A unit failed on every retry, the scheduler cancelled it, or the
+        operating system refused a write (one line naming the path).
 
     Returns
     -------
@@ -279,247 +259,167 @@ def run_study(
     """
     stream = stream if stream is not None else sys.stderr
     t0 = time.perf_counter()
-    in_memory = output is None
     check_run(output, client, scheduler, scheduler_file, workers, retries, worker_timeout)
     plans = plan(study)
-    adaptive = [p for p in plans if p.kind == "adaptive"]  # refinement waves (study.adaptive)
-    if in_memory:
-        from study.memory import MemoryWork
-
-        work = MemoryWork()
-    else:
-        output = Path(output)
-        _check_runnable(study, output, overwrite)
-        work = WorkDir(output)
-    if not work.lock():
-        raise StudyError(
-            "-o", f"another run is writing {output} (its work folder {work.path} is locked)"
-        )
-    finished = False
-    saved = [0]  # chunks on disk for this study: reused + computed so far
-    n_chunks = 0
+    work = _work(study, output, overwrite, stream)
+    done, survey, finished = Driven(), None, False
     try:
-        stale = work.clean()
-        for p in [] if in_memory else temporary_outputs(output):
-            p.unlink(missing_ok=True)
-            stale += 1
-        reused = reused_points = discarded = 0
-        for p in plans:
-            if p.kind == "adaptive":
-                continue
-            for c in p.chunks():
-                n_chunks += 1
-                if work.has(c.scene, c.key):
-                    why = work.discard_if_bad(c.scene, c.key, chunk_shape(p.kind, c.rows, c.cols))
-                    if why:  # verified, not trusted (study.verify)
-                        discarded += 1
-                        path = work.chunk_path(c.scene, c.key)
-                        print(f"study: discarded {path}: {why}; computing it again", file=stream)
-                        continue
-                    reused += 1
-                    reused_points += c.n_points
-        saved[0] = reused
-        missing = n_chunks - reused
-        n_points = study.n_points
-        print(
-            f"study: {study.name}: {n_points:,} points in {n_chunks:,} chunks; "
-            f"reusing {reused:,} chunks from {work.path}, computing {missing:,}"
-            + (f" (deleted {stale} partial files of a killed run)" if stale else ""),
-            file=stream,
-        )
-        compute_seconds = compute_wall = 0.0
-        if adaptive:
-            from study.adaptive import missing_planes, run_adaptive
-
-            adaptive = [p for p in adaptive if missing_planes(p, work)]
-        if missing or adaptive:
-            bar = Progress(n_points, reused_points, stream=stream, enabled=progress)
-            bar.tracker = cost_tracker(plans, work)  # learns each scene's cost (study.cost)
-            bar.eta_seconds = bar.tracker.eta
-            if client is None and not (scheduler or scheduler_file):
-                compile_once(stream)  # before the local workers start: they load it from cache
-            quiet = quiet_dask_logs() if client is None else nullcontext()
-            with quiet, connect(client, scheduler, scheduler_file, workers, stream) as c:
-                bar.start()
-                t1 = time.perf_counter()
-                dog = Watchdog(
-                    c,
-                    worker_timeout,
-                    local=client is None and not (scheduler or scheduler_file),
-                    where=str(work.path),
-                    stream=stream,
-                )
-                if missing:
-                    grid = [p for p in plans if p.kind != "adaptive"]
-                    compute_seconds = _compute(c, grid, work, bar, retries, saved, watchdog=dog)
-                for p in adaptive:
-                    run_adaptive(c, p, work, retries, stream, progress, saved, bar, watchdog=dog)
-                compute_wall = time.perf_counter() - t1
-            bar.close()
-        from study.netcdf import result_tree, write_result
-
-        t2 = time.perf_counter()
-        if in_memory:
-            tree = result_tree(study, plans, work)
+        survey = _survey(study, plans, work, output, stream)
+        if survey.missing:
+            where = (client, scheduler, scheduler_file, workers)
+            timing = _compute(plans, work, where, retries, progress, worker_timeout, done, stream)
         else:
-            write_result(study, plans, work, output, command)
+            timing = (0.0, 0.0)
+        t2 = time.perf_counter()
+        result = _assemble(study, plans, work, output, command)
         write_seconds = time.perf_counter() - t2
         finished = True
     except KeyboardInterrupt:
-        raise StudyInterrupted(
-            f"interrupted: {saved[0]:,} of {n_chunks:,} chunks are saved in {work.path}; "
-            f"{older_result_note(output)}; rerun the same command to resume"
+        raise StudyInterrupted(_interrupted(work, output, done, survey)) from None
+    except OSError as exc:  # the OS refused the work folder: one line, nothing lost
+        where = exc.filename or work.path
+        raise StudyFailed(
+            f"cannot use {where}: {os_cause(exc)}; {older_result_note(output)}"
         ) from None
     finally:
-        if finished or not work.count():
-            work.remove()  # done, or nothing worth keeping
-        else:
-            work.unlock()
+        _release(work, finished)
     wall = time.perf_counter() - t0
-    computed = saved[0] - reused  # chunks whose results arrived and were saved by this run
-    if in_memory:
-        print(f"study: computed {n_points:,} points in memory in {wall:.1f} s", file=stream)
-        return tree
+    if output is None:
+        print(f"study: computed {study.n_points:,} points in memory in {wall:.1f} s", file=stream)
+        return result
     print(
-        f"study: wrote {output} ({n_points:,} points; {computed:,} chunks computed, "
-        f"{reused:,} reused) in {wall:.1f} s",
+        f"study: wrote {output} ({study.n_points:,} points; {done.saved:,} chunks computed, "
+        f"{survey.reused:,} reused) in {wall:.1f} s",
         file=stream,
     )
     return RunSummary(
-        output,
-        n_points,
-        n_chunks,
-        reused,
-        computed,
+        Path(output),
+        study.n_points,
+        survey.units,
+        survey.reused,
+        done.saved,
         wall,
-        compute_seconds,
-        compute_wall,
+        done.compute_seconds,
+        timing[1],
         write_seconds,
     )
 
 
-def cost_tracker(plans: list[ScenePlan], work: WorkDir) -> CostTracker:
-    """A :class:`study.cost.CostTracker` of the chunks still missing from ``work``."""
-    estimates = {}
-    for p in plans:
-        missing = sum(c.n_points for c in p.chunks() if not work.has(c.scene, c.key))
-        per = p.est_seconds / max(1, p.spec.n_points)
-        estimates[p.spec.name] = (missing, per)
-    return CostTracker(estimates)
+@dataclass
+class Survey:
+    """What the work folder holds for a study's plans (after their ``prepare``)."""
+
+    units: int
+    reused: int
+    missing: bool
+    #: Every unit is known ahead (no adaptive scene).
+    fixed: bool = True
 
 
-def _pending(plans: list[ScenePlan], work: WorkDir) -> Iterator[tuple[ScenePlan, dict, Chunk]]:
-    for p in plans:
-        axes = p.axes()
-        for c in p.chunks():
-            if not work.has(c.scene, c.key):
-                yield p, axes, c
+def _work(study: Study, output, overwrite: bool, stream: TextIO):
+    """The locked work folder of ``output`` (in memory without one)."""
 
+    def report(line: str) -> None:
+        print(line, file=stream)
 
-def _failure(chunk: Chunk, exc: BaseException, retries: int, work: WorkDir) -> StudyFailed:
-    from distributed import KilledWorker
-    from distributed.comm.core import CommClosedError
+    if output is None:
+        from study.memory import MemoryWork
 
-    if isinstance(exc, CancelledError):
-        why = "was cancelled by the scheduler (restarted, or the connection to it was lost)"
-    elif isinstance(exc, CommClosedError | ConnectionError):
-        why = "could not be fetched: the connection to the scheduler was lost"
-    elif isinstance(exc, KilledWorker):
-        why = f"killed every worker that ran it: {exc}"
-    else:
-        why = f"failed after {retries} retries: {type(exc).__name__}: {exc}"
-    msg = (
-        f"chunk {chunk.key} of scene {chunk.scene} {why}; "
-        f"finished chunks are kept in {work.path}, rerun to resume"
-    )
-    return StudyFailed(" ".join(msg.split()))
-
-
-def _compute(
-    client,
-    plans,
-    work: WorkDir,
-    bar: Progress,
-    retries: int,
-    saved: list[int],
-    watchdog: Watchdog | None = None,
-) -> float:
-    """Submit the missing chunks through a sliding window; persist each as it finishes.
-
-    ``saved[0]`` counts the chunks on disk (for the message of an interrupted
-    run). Returns the compute seconds the finished chunks report.
-    """
-    from distributed import as_completed
-
-    todo = _pending(plans, work)
-    inflight: dict[str, tuple[object, Chunk]] = {}  # future key -> (future, chunk)
-    futures = as_completed()
-    compute_seconds = 0.0
-    window = MIN_WINDOW
-    next_look = 0.0
-
-    def fill() -> None:
-        nonlocal window, next_look
-        now = time.monotonic()
-        if now >= next_look:  # workers come and go (adaptive clusters, lost workers)
-            try:
-                threads = sum(client.nthreads().values())
-            except OSError:  # the scheduler is unreachable: the watchdog decides
-                threads = 0
-            window = max(MIN_WINDOW, WINDOW_PER_THREAD * threads)
-            next_look = now + WINDOW_REFRESH
-        batch: list[tuple[ScenePlan, dict, Chunk]] = []
-        while len(inflight) + len(batch) < window:
-            item = next(todo, None)
-            if item is None:
-                break
-            batch.append(item)
-        if not batch:
-            return
-        new = client.map(
-            compute_chunk,
-            [p.task(c, axes) for p, axes, c in batch],
-            key=[f"study-{c.key}" for _, _, c in batch],
-            retries=retries,
-            pure=False,
-        )
-        for fut, (_, _, chunk) in zip(new, batch, strict=True):
-            inflight[fut.key] = (fut, chunk)
-        futures.update(new)
-
+        return MemoryWork(report)
+    output = Path(output)
+    _check_runnable(study, output, overwrite)
+    work = WorkDir(output, report)
     try:
-        fill()
-        for done in watched_batches(futures, watchdog):
-            try:  # one round trip for the whole batch
-                results = watched_gather(client, done, watchdog)
-            except BaseException as exc:
-                if isinstance(exc, KeyboardInterrupt):
-                    raise
-                results = None
-            for i, fut in enumerate(done):
-                _, chunk = inflight[fut.key]
-                if results is None:
-                    try:
-                        arrays = watched_gather(client, [fut], watchdog)[0]
-                    except (KeyboardInterrupt, StudyFailed):  # StudyFailed: the watchdog's
-                        raise
-                    except BaseException as exc:  # CancelledError is not an Exception
-                        raise _failure(chunk, exc, retries, work) from None
-                else:
-                    arrays = results[i]
-                work.save(chunk.scene, chunk.key, arrays)
-                del inflight[fut.key]
-                fut.release()
-                saved[0] += 1
-                compute_seconds += float(arrays["seconds"])
-                bar.update(chunk.n_points)
-                if getattr(bar, "tracker", None) is not None:
-                    bar.tracker.record(chunk.scene, chunk.n_points, float(arrays["seconds"]))
-            fill()
-    except BaseException:
-        client.cancel([f for f, _ in inflight.values()])
-        raise
-    if inflight:  # as_completed ended with chunks unaccounted for: never silently
-        chunk = next(iter(inflight.values()))[1]
-        raise StudyFailed(f"chunk {chunk.key} of scene {chunk.scene} never completed")
-    return compute_seconds
+        locked = work.lock()
+    except OSError as exc:
+        raise StudyError("-o", f"cannot lock {work.lock_path}: {os_cause(exc)}") from None
+    if not locked:
+        raise StudyError(
+            "-o", f"another run is writing {output} (its work folder {work.path} is locked)"
+        )
+    return work
+
+
+def _survey(study: Study, plans: list[ScenePlan], work, output, stream: TextIO) -> Survey:
+    """Clean and verify the work folder; say in one line what is reused and what is computed."""
+    stale = work.scan([p.spec.name for p in plans])
+    for p in [] if output is None else temporary_outputs(output):
+        p.unlink(missing_ok=True)
+        stale += 1
+    by_noun: dict[str, list[int]] = {}
+    for p in plans:
+        p.stream = stream
+        n, reused, _ = p.prepare(work)
+        counts = by_noun.setdefault(p.unit_noun, [0, 0])
+        counts[0] += n
+        counts[1] += reused
+    parts = [
+        f"{n:,} {noun}; reusing {reused:,} {noun} from {work.path}, computing {n - reused:,}"
+        for noun, (n, reused) in by_noun.items()
+    ]
+    print(
+        f"study: {study.name}: {study.n_points:,} points in "
+        + "; ".join(parts)
+        + (f" (deleted {stale} partial files of a killed run)" if stale else ""),
+        file=stream,
+    )
+    units = sum(n for n, _ in by_noun.values())
+    reused = sum(r for _, r in by_noun.values())
+    missing = any(p.missing_points(work) for p in plans)
+    return Survey(units, reused, missing, set(by_noun) == {"chunks"})
+
+
+def _compute(plans, work, where, retries, progress, worker_timeout, done, stream):
+    """Compute every missing unit on the cluster; (compute seconds, compute wall seconds)."""
+    client, scheduler, scheduler_file, workers = where
+    local = client is None and not (scheduler or scheduler_file)
+    total = sum(p.spec.n_points for p in plans)
+    bar = Progress(total, sum(p.finished_points for p in plans), stream=stream, enabled=progress)
+    bar.tracker = CostTracker(  # learns each scene's cost (study.cost)
+        {
+            p.spec.name: (p.missing_points(work), p.est_seconds / max(1, p.spec.n_points))
+            for p in plans
+        }
+    )
+    bar.eta_seconds = bar.tracker.eta
+    if local:
+        compile_once(stream)  # before the local workers start: they load it from cache
+    quiet = quiet_dask_logs() if client is None else nullcontext()
+    with quiet, connect(client, scheduler, scheduler_file, workers, stream) as c:
+        bar.start()
+        t1 = time.perf_counter()
+        dog = Watchdog(c, worker_timeout, local=local, where=str(work.path), stream=stream)
+        drive(c, plans, work, bar, retries, done, watchdog=dog)
+        wall = time.perf_counter() - t1
+    bar.close()
+    return done.compute_seconds, wall
+
+
+def _assemble(study: Study, plans: list[ScenePlan], work, output, command: str | None):
+    """The result: written atomically to ``output``, or in memory without one."""
+    from study.netcdf import result_tree, write_result
+
+    if output is None:
+        return result_tree(study, plans, work)
+    return write_result(study, plans, work, Path(output), command)
+
+
+def _interrupted(work, output, done: Driven, survey: Survey | None) -> str:
+    """The line of an interrupted run: what is kept where, and what the output still is."""
+    older = older_result_note(output) if output is not None else "nothing was written"
+    kept = (survey.reused if survey else 0) + done.saved
+    if output is None or not kept:  # the work folder is removed: never name it
+        return f"interrupted: no chunk was saved yet; {older}"
+    of = f" of {survey.units:,}" if survey.fixed else ""  # adaptive units are not known ahead
+    return (
+        f"interrupted: {kept:,}{of} chunks are saved in {work.path}; "
+        f"{older}; rerun the same command to resume"
+    )
+
+
+def _release(work, finished: bool) -> None:
+    """Remove the work folder when done or empty; else keep it for a rerun."""
+    if finished or not work.count():
+        work.remove()  # done, or nothing worth keeping
+    else:
+        work.unlock()

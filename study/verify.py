@@ -8,12 +8,15 @@ Every chunk file (:mod:`study.store`) stores, beside its arrays,
   files (``tasks/*.py``, ``study/compute.py``, ``study/trace.py``); it is also
   part of every chunk key (:mod:`study.chunks`), so chunks computed by another
   version of the code are never reused;
-* ``_shape``: the shape of its arrays (checked against the chunk's block);
 * ``_checksum``: SHA-256 of the arrays' names, dtypes, shapes and bytes
   (truncation, bit flips, garbage).
 
-:func:`check_chunk` returns why a file fails (or None); the run reports each
-failing file by path, deletes it and computes the chunk again.
+A valid checksum only says the file is what some run wrote; the plan says what
+it must hold (:meth:`study.chunks.ScenePlan.expected`: every field, its dtype
+and its shape), so a file re-signed with other shapes, a missing field or
+another dtype is refused too. :func:`check_chunk` returns why a file fails (or
+None); the run reports each failing file by path, moves it aside and computes
+the chunk again.
 """
 
 from __future__ import annotations
@@ -25,14 +28,14 @@ from pathlib import Path
 
 import numpy as np
 
-from tasks.adaptive import ADAPTIVE_FIELDS
-from tasks.result import FIELDS, MASS_FIELDS
-
 #: Metadata entries of a chunk file (not result arrays).
-META = ("_key", "_version", "_shape", "_checksum")
+META = ("_key", "_version", "_checksum")
 _ROOT = Path(__file__).resolve().parents[1]
 #: Source files whose content defines the simulator's results.
 SIMULATOR_SOURCES = ("tasks/*.py", "study/compute.py", "study/trace.py")
+#: What a unit's file must hold: field -> (dtype, shape); a shape of None means
+#: any shape (bookkeeping of variable length, e.g. an adaptive plane's levels).
+Expected = dict[str, tuple[str, tuple[int, ...] | None]]
 
 
 @lru_cache(maxsize=1)
@@ -56,26 +59,12 @@ def checksum(arrays: dict[str, np.ndarray]) -> str:
     return h.hexdigest()
 
 
-def data_shape(arrays: dict[str, np.ndarray]) -> tuple[int, ...]:
-    """The common shape of the non-scalar result arrays (``seconds`` is 0-d; per-mass
-    fields of ``tasks.result.MASS_FIELDS`` have one more, trailing axis: the mass)."""
-    shapes = {
-        np.shape(v)[:-1] if k in MASS_FIELDS else np.shape(v)
-        for k, v in arrays.items()
-        if k in FIELDS or k in ADAPTIVE_FIELDS  # not bookkeeping (an adaptive plane's levels)
-    }
-    if len(shapes) != 1:
-        raise ValueError(f"chunk arrays of different shapes: {sorted(shapes)}")
-    return shapes.pop()
-
-
 def with_metadata(key: str, arrays: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     """``arrays`` plus the metadata entries a chunk file stores."""
     return {
         **arrays,
         "_key": np.array(key),
         "_version": np.array(simulator_version()),
-        "_shape": np.array(data_shape(arrays), dtype=np.int64),
         "_checksum": np.array(checksum(arrays)),
     }
 
@@ -90,8 +79,21 @@ def read_chunk(path: Path) -> dict[str, np.ndarray]:
         raise ValueError(f"unreadable ({type(exc).__name__}: {text[:80]})") from None
 
 
+def check_layout(arrays: dict[str, np.ndarray], expected: Expected) -> str | None:
+    """Why ``arrays`` do not hold every field of ``expected`` with its dtype and shape."""
+    for name, (dtype, shape) in expected.items():
+        if name not in arrays:
+            return f"has no field {name!r}"
+        a = np.asarray(arrays[name])
+        if a.dtype != np.dtype(dtype):
+            return f"field {name!r} is {a.dtype}, expected {np.dtype(dtype)}"
+        if shape is not None and a.shape != tuple(shape):
+            return f"field {name!r} has shape {a.shape}, expected {tuple(shape)}"
+    return None
+
+
 def check_arrays(
-    arrays: dict[str, np.ndarray], key: str, shape: tuple[int, ...] | None = None
+    arrays: dict[str, np.ndarray], key: str, expected: Expected | None = None
 ) -> str | None:
     """Why the loaded entries of a chunk file cannot be reused as chunk ``key``, or None."""
     missing = [m for m in META if m not in arrays]
@@ -103,31 +105,15 @@ def check_arrays(
         return f"computed by another simulator version ({str(arrays['_version'])[:16]})"
     if str(arrays["_checksum"]) != checksum(arrays):
         return "checksum mismatch (the file was altered or damaged)"
-    stored = tuple(int(n) for n in np.atleast_1d(arrays["_shape"]))
-    try:
-        actual = data_shape(arrays)
-    except ValueError as exc:
-        return str(exc)
-    if actual != stored:
-        return f"arrays of shape {actual}, but the file says {stored}"
-    if shape is not None and tuple(shape) != actual:
-        return f"arrays of shape {actual}, but the chunk has shape {tuple(shape)}"
-    return None
+    return check_layout(arrays, expected) if expected is not None else None
 
 
-def check_chunk(path: Path, key: str, shape: tuple[int, ...] | None = None) -> str | None:
+def check_chunk(path: Path, key: str, expected: Expected | None = None) -> str | None:
     """Why the chunk file at ``path`` cannot be reused as chunk ``key``, or None if it can."""
+    if not path.is_file() or path.is_symlink() and not path.exists():
+        return "is not a regular file"
     try:
         arrays = read_chunk(path)
     except ValueError as exc:
         return str(exc)
-    return check_arrays(arrays, key, shape)
-
-
-def chunk_shape(kind: str, rows: tuple[int, int], cols: tuple[int, int]) -> tuple[int, ...] | None:
-    """Shape of a chunk's arrays: (rows, cols) of a grid block, (rows,) of a point list
-    or traced scene; None (not checked) for another kind."""
-    n = rows[1] - rows[0]
-    if kind == "grid":
-        return (n, cols[1] - cols[0])
-    return (n,) if kind in ("points", "trace") else None
+    return check_arrays(arrays, key, expected)

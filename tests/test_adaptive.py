@@ -255,26 +255,26 @@ def test_adaptive_scene_validation(study_file, edit, field):
 
 @pytest.mark.cluster
 def test_adaptive_study_on_local_cluster_resumes_after_interruption(tmp_path, monkeypatch):
-    import study.adaptive as sa
     from study import run_study
+    from study.adaptive import AdaptivePlan
 
     study = Study.from_toml(_write(tmp_path / "adaptive.toml", ADAPTIVE))
     out = tmp_path / "adaptive.nc"
     with local_cluster_client(2) as client:
-        real_wave = sa._wave
+        real_advance = AdaptivePlan._advance
         calls = [0]
 
-        def interrupted_wave(*args, **kwargs):
+        def interrupted_advance(self, *args, **kwargs):
             calls[0] += 1
-            if calls[0] == 4:  # Ctrl-C during the fourth wave of the first plane
+            if calls[0] == 4:  # Ctrl-C when the third wave of the first plane is complete
                 raise KeyboardInterrupt
-            return real_wave(*args, **kwargs)
+            return real_advance(self, *args, **kwargs)
 
-        monkeypatch.setattr(sa, "_wave", interrupted_wave)
+        monkeypatch.setattr(AdaptivePlan, "_advance", interrupted_advance)
         with pytest.raises(StudyInterrupted):
             run_study(study, out, client=client, progress=False, stream=io.StringIO())
         assert not out.exists() and (tmp_path / "adaptive.nc.work").is_dir()
-        monkeypatch.setattr(sa, "_wave", real_wave)
+        monkeypatch.setattr(AdaptivePlan, "_advance", real_advance)
         log = io.StringIO()
         run_study(study, out, client=client, progress=False, stream=log)
     assert not (tmp_path / "adaptive.nc.work").exists()

@@ -216,8 +216,13 @@ def assert_progress_complete(stderr: str, n_points: int) -> None:
 
 
 def assert_fields_equal(node: xr.Dataset, index: dict, expected) -> None:
-    """Every result field of ``node`` at ``index`` equals the ClassifyResult ``expected``."""
+    """Every result field of ``node`` at ``index`` equals the ClassifyResult ``expected``;
+    ``regime_rest`` only where rest was a start (else it is not written: all -127)."""
+    rest = (expected.regime_rest != regimes.NOT_COMPUTED).any()
+    assert ("regime_rest" in node.data_vars) == rest
     for name in FIELDS:
+        if name == "regime_rest" and not rest:
+            continue
         da = node[name].isel(index) if index else node[name]
         da = da.transpose(*(d for d in ("point", "r", "beta", "mass") if d in da.dims))
         np.testing.assert_array_equal(da.values, getattr(expected, name), err_msg=name)
@@ -479,6 +484,97 @@ def test_local_cluster_multi_scene_end_to_end(tmp_path, warm_kernels):
     root = xr.open_dataset(out)  # the root says what the file holds
     assert not root.data_vars and root.attrs["groups"].split() == ["sweep", "pts"]
     assert "open_datatree" in root.attrs["how_to_open"]
+
+
+#: Two traced scenes: the README's (4 values of r, the size that failed with
+#: "chunk arrays of different shapes: []") and a ground contact whose exact
+#: closed forms (docs/theory.md 4.3, Eqs. 13, 63) are the truth the simulation
+#: must find to within the bisection tolerance (half a beta step).
+TRACE = """
+[study]
+name = "trace"
+fidelity = "balanced"
+
+[[scene]]
+name = "traced"
+contact = "base"
+dof = 2
+contact_mass = 2
+mode = "trace"
+r = {start = 0.1, stop = 3.0, num = 4}
+beta = {start = 0.0, stop = 3.0, num = 3001}
+
+[[scene]]
+name = "ground"
+contact = "ground"
+dof = 2
+contact_mass = 2
+mode = "trace"
+r = [0.3, 0.9, 1.3, 2.2]
+beta = {start = 0.0, stop = 4.0, num = 4001}
+"""
+
+
+def test_trace_study_writes_its_result(tmp_path, warm_kernels):
+    from analysis import boundaries
+
+    write_study(tmp_path / "trace.toml", TRACE)
+    proc = run_cli(tmp_path, "run", "trace.toml", "-o", "trace.nc", "--workers", "2")
+    assert_ok(proc)
+    out = tmp_path / "trace.nc"
+    assert not (tmp_path / "trace.nc.work").exists() and not temporary_files(out)
+    tree = xr.open_datatree(out)
+    assert set(tree.children) == {"traced", "ground"}
+    for name, n_r in (("traced", 4), ("ground", 4)):
+        ds = tree[name].to_dataset()
+        for var in ("beta_continuous_numerical", "beta_motion_numerical"):
+            assert ds[var].dims == ("r",) and ds[var].dtype == np.float64
+            assert ds[var].shape == (n_r,)
+        assert ds["trace_points"].dtype == np.int32 and (ds["trace_points"] > 0).all()
+        assert ds["trace_monotone"].dtype == np.int8
+        assert "beta" not in ds.dims
+    np.testing.assert_allclose(tree["traced"]["r"], np.linspace(0.1, 3.0, 4), rtol=1e-14)
+    ground = tree["ground"].to_dataset()
+    step = 4.0 / 4000
+    exact_c, exact_m = boundaries(
+        Scene("ground", 2, 2, gamma=1.0, kappa=1.0), ground["r"].values, method="exact"
+    )
+    assert (ground["trace_monotone"] == 1).all()
+    for var, exact in (("beta_continuous_numerical", exact_c), ("beta_motion_numerical", exact_m)):
+        traced = ground[var].values
+        assert np.all(np.isfinite(traced)), var
+        # found by bisection to half a step; the closed form lies within a step of it
+        # plus the relative tolerance of the traced-boundary tests (tests/test_trace.py)
+        assert np.all(np.abs(traced - exact) <= step + 1e-3 * exact), (var, traced, exact)
+    # the closed forms written beside the traced boundaries are the same closed forms
+    np.testing.assert_allclose(ground["beta_motion_exact"], exact_m, rtol=1e-12)
+
+
+STARTS = """
+[study]
+name = "starts"
+fidelity = "fast"
+
+[settings]
+starts = ["held", "rest"]
+
+[[scene]]
+contact = "ground"
+dof = 2
+r = {start = 0.3, stop = 2.1, num = 6}
+beta = {start = 0.05, stop = 1.0, num = 4}
+"""
+
+
+def test_regime_rest_is_written_only_where_rest_is_a_start(tmp_path, warm_kernels):
+    write_study(tmp_path / "starts.toml", STARTS)
+    assert_ok(run_cli(tmp_path, "run", "starts.toml", "-o", "starts.nc", "--workers", "1"))
+    ds = xr.open_dataset(tmp_path / "starts.nc")
+    assert ds["regime_rest"].dtype == np.int8
+    assert not (ds["regime_rest"] == regimes.NOT_COMPUTED).any()
+    R, B = np.meshgrid(ds["r"].values, ds["beta"].values, indexing="ij")
+    expected = classify(Scene("ground", 2), R, B, "fast", starts=("held", "rest"))
+    assert_fields_equal(ds, {}, expected)
 
 
 def test_remote_cluster_via_scheduler_file(tmp_path, remote):

@@ -1,0 +1,185 @@
+"""Driving plans on Dask: one loop for every scene kind.
+
+Every plan (:mod:`study.chunks`) hands out its units of work through
+:meth:`~study.chunks.ScenePlan.next_unit`. The client keeps at most a window of
+units in flight (a few per worker thread, resized as workers come and go),
+refilled from ``as_completed``, so neither the client nor the scheduler ever
+holds the whole study. Workers return numpy arrays and never write files; the
+client saves each result atomically in the work folder (:mod:`study.store`)
+before handing it to its plan (:meth:`~study.chunks.ScenePlan.accept`), which
+may then have more units to give (the next wave of an adaptive plane). A
+killed worker costs only the tasks it was running or holding, which the
+scheduler reruns elsewhere; tasks that raise are retried (``retries``).
+"""
+
+from __future__ import annotations
+
+import time
+from concurrent.futures import CancelledError
+from dataclasses import dataclass
+
+from study.compute import compute_chunk
+from study.errors import StudyFailed
+from study.plans import WAIT, ScenePlan
+from study.progress import Progress
+from study.watchdog import Watchdog, watched_batches, watched_gather
+
+#: Units kept in flight per worker thread (at least ``MIN_WINDOW`` in all).
+WINDOW_PER_THREAD = 4
+MIN_WINDOW = 16
+#: Seconds between two looks at the number of worker threads (window size).
+WINDOW_REFRESH = 5.0
+
+
+@dataclass
+class Driven:
+    """What :func:`drive` did: units saved and their compute seconds."""
+
+    saved: int = 0
+    compute_seconds: float = 0.0
+
+
+def _failure(unit, exc: BaseException, retries: int, where: str) -> StudyFailed:
+    from distributed import KilledWorker
+    from distributed.comm.core import CommClosedError
+
+    if isinstance(exc, CancelledError):
+        why = "was cancelled by the scheduler (restarted, or the connection to it was lost)"
+    elif isinstance(exc, CommClosedError | ConnectionError):
+        why = "could not be fetched: the connection to the scheduler was lost"
+    elif isinstance(exc, KilledWorker):
+        why = f"killed every worker that ran it: {exc}"
+    else:
+        why = f"failed after {retries} retries: {type(exc).__name__}: {exc}"
+    msg = (
+        f"chunk {unit.key} of scene {unit.scene} {why}; "
+        f"finished chunks are kept in {where}, rerun to resume"
+    )
+    return StudyFailed(" ".join(msg.split()))
+
+
+class _Window:
+    """Units in flight, the plans still handing out units, and the progress."""
+
+    def __init__(self, client, plans, work, bar: Progress, retries: int, done: Driven):
+        from distributed import as_completed
+
+        self.client, self.work, self.bar, self.retries, self.done = (
+            client,
+            work,
+            bar,
+            retries,
+            done,
+        )
+        self.active = list(plans)
+        self.plans = list(plans)
+        self.inflight: dict[str, tuple[object, ScenePlan, object]] = {}
+        self.futures = as_completed()
+        self.size = MIN_WINDOW
+        self.next_look = 0.0
+        self.shown = sum(p.finished_points for p in plans)
+
+    def _resize(self) -> None:
+        now = time.monotonic()
+        if now < self.next_look:  # workers come and go (adaptive clusters, lost workers)
+            return
+        try:
+            threads = sum(self.client.nthreads().values())
+        except OSError:  # the scheduler is unreachable: the watchdog decides
+            threads = 0
+        self.size = max(MIN_WINDOW, WINDOW_PER_THREAD * threads)
+        self.next_look = now + WINDOW_REFRESH
+
+    def fill(self) -> None:
+        """Submit units until the window is full or every plan waits or is done."""
+        self._resize()
+        batch: list[tuple[ScenePlan, object]] = []
+        for p in list(self.active):
+            while len(self.inflight) + len(batch) < self.size:
+                unit = p.next_unit(self.work)
+                if unit is None:
+                    self.active.remove(p)
+                    break
+                if unit is WAIT:
+                    break
+                batch.append((p, unit))
+        self.progress()
+        if not batch:
+            return
+        new = self.client.map(
+            compute_chunk,
+            [p.task(u) for p, u in batch],
+            key=[f"study-{u.key}" for _, u in batch],
+            retries=self.retries,
+            pure=False,
+        )
+        for fut, (p, u) in zip(new, batch, strict=True):
+            self.inflight[fut.key] = (fut, p, u)
+        self.futures.update(new)
+
+    def progress(self) -> None:
+        total = sum(p.finished_points for p in self.plans)
+        if total > self.shown:
+            self.bar.update(total - self.shown)
+            self.shown = total
+
+    def arrived(self, fut, arrays) -> None:
+        """Save one result, hand it to its plan, count it."""
+        _, p, unit = self.inflight.pop(fut.key)
+        self.work.save(unit.scene, unit.key, arrays)
+        fut.release()
+        self.done.saved += 1
+        seconds = float(arrays["seconds"])
+        self.done.compute_seconds += seconds
+        before = p.finished_points
+        p.accept(unit, arrays, self.work)
+        tracker = getattr(self.bar, "tracker", None)
+        if tracker is not None:
+            tracker.record(unit.scene, p.finished_points - before, seconds)
+
+    def fetch_one(self, fut, watchdog):
+        try:
+            return watched_gather(self.client, [fut], watchdog)[0]
+        except (KeyboardInterrupt, StudyFailed):  # StudyFailed: the watchdog's
+            raise
+        except BaseException as exc:  # CancelledError is not an Exception
+            unit = self.inflight[fut.key][2]
+            raise _failure(unit, exc, self.retries, str(self.work.path)) from None
+
+
+def drive(
+    client,
+    plans: list[ScenePlan],
+    work,
+    bar: Progress,
+    retries: int,
+    done: Driven,
+    watchdog: Watchdog | None = None,
+) -> Driven:
+    """Compute every missing unit of ``plans`` (after their ``prepare``), saving each.
+
+    ``done`` is updated as results are saved (so an interrupted run can say
+    how much it kept).
+    """
+    win = _Window(client, plans, work, bar, retries, done)
+    try:
+        win.fill()
+        for batch in watched_batches(win.futures, watchdog):
+            try:  # one round trip for the whole batch
+                results = watched_gather(client, batch, watchdog)
+            except KeyboardInterrupt:
+                raise
+            except BaseException:  # one of them failed: fetch one by one to name it
+                results = [win.fetch_one(fut, watchdog) for fut in batch]
+            for fut, arrays in zip(batch, results, strict=True):
+                win.arrived(fut, arrays)
+            win.fill()
+    except BaseException:
+        client.cancel([f for f, _, _ in win.inflight.values()])
+        raise
+    if win.inflight or win.active:  # as_completed ended with work unaccounted for
+        p = (win.active or [None])[0]
+        unit = next(iter(win.inflight.values()))[2] if win.inflight else None
+        what = f"chunk {unit.key}" if unit else "a unit"
+        raise StudyFailed(f"{what} of scene {unit.scene if unit else p.spec.name} never completed")
+    return done
