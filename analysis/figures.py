@@ -62,8 +62,8 @@ _METHOD_MARKERS: dict[str, dict[str, object]] = {
     "exact": {"marker": "o", "markersize": 3.5},
 }
 _METHOD_COLOURS: dict[str, str] = {"paper": "#d62728", "exact": "#1f77b4"}
-#: An amplitude at most this fraction of the largest one counts as held (0) in the
-#: response figure (a held mass has amplitude 0 up to rounding).
+#: An amplitude at most this fraction of the largest one is 0 in the response figure
+#: (a held mass has amplitude 0 up to rounding).
 HELD_AMPLITUDE = 1e-12
 _PAD = 0.03  # fraction of the axis range by which clipped values overshoot it
 #: Axis names of the paper: r_1 = omega sqrt(m_1/k_1) (Eq. 7) and beta (Eq. 8).
@@ -595,15 +595,18 @@ def response_figure(
     beta = ds["beta"].values
     picks = np.unique(np.linspace(0, beta.size - 1, min(n_beta, beta.size)).round().astype(int))
     values = amp.values
-    positive = values[np.isfinite(values) & (values > 0)]
-    hi = float(positive.max()) if positive.size else 1.0
+    finite = np.isfinite(values)
+    hi = float(values[finite].max()) if finite.any() and values[finite].max() > 0 else 1.0
+    # a log axis has no 0: an amplitude of 0 (a held mass, or an antiresonance at
+    # beta = 0) is drawn as no line, and the r where the smallest amplitude is 0 as a
+    # bar along the bottom; smaller positive values run off the bottom of the axis
+    zero = finite & (values <= HELD_AMPLITUDE * hi)
+    positive = values[finite & ~zero]
     floor = max(float(positive.min()) if positive.size else 1e-3, 1e-4 * hi)
-    # a log axis has no 0: a held mass (amplitude 0) is drawn as no line, and the
-    # r where the smallest amplitude is 0 as a bar along the bottom
-    shown = np.where(np.isfinite(values) & (values > 0), np.maximum(values, floor), np.nan)
+    shown = np.where(finite & ~zero, values, np.nan)
     minimum = best["amplitude_minimum"].values
     held = np.isfinite(minimum) & (minimum <= HELD_AMPLITUDE * hi)
-    envelope = np.where(held, np.nan, np.maximum(minimum, floor))
+    envelope = np.where(held, np.nan, minimum)
     fig = new_figure(7.6, 6.2)
     top, bottom = fig.subplots(2, 1, sharex=True, height_ratios=[3, 2])
     cmap = colormaps["viridis"]
@@ -617,18 +620,13 @@ def response_figure(
     env.set_label("smallest over the grid's $\\beta$")
     handles.append(env)
     if held.any():
-        bar = top.fill_between(
-            r,
-            0.0,
-            0.035,
-            where=held,
-            step="mid",
-            color="0.35",
-            transform=top.get_xaxis_transform(),
-            linewidth=0,
-        )
-        bar.set_label(f"$m_{{{mass}}}$ held (amplitude 0) from the motion bound up")
-        handles.append(bar)
+        edges = _edges(r)
+        runs = np.flatnonzero(np.diff(np.concatenate(([0], held.astype(int), [0]))))
+        for k, (a, b) in enumerate(zip(runs[::2], runs[1::2], strict=True)):
+            bar = top.axvspan(edges[a], edges[b], ymin=0.0, ymax=0.035, color="0.35", lw=0)
+            if k == 0:
+                bar.set_label(f"smallest amplitude of $m_{{{mass}}}$ is 0")
+                handles.append(bar)
     top.set_yscale("log")
     top.set_ylim(0.7 * floor, 1.5 * hi)
     which = "absolute" if frame == "absolute" else "relative to the base"

@@ -131,7 +131,7 @@ def test_optimal_beta_and_response_figure():
         if y.size == r.size and line.get_label().startswith(r"$\beta$ = "):
             b = float(line.get_label().split("= ")[1])
             assert np.all(np.isnan(y)) == (b >= 1.0), (b, y)
-    assert held.any() and any("held" in str(c.get_label()) for c in top.collections)
+    assert held.any() and any("is 0" in str(p.get_label()) for p in top.patches)
     # ... and where the smallest amplitude is 0 the "optimum" is only the motion bound:
     # not drawn, and the figure says why
     (opt,) = [ln for ln in bottom.get_lines() if ln.get_marker() == "."]
