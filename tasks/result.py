@@ -213,7 +213,7 @@ class ClassifyResult:
         xarray.Dataset
             Dims ``(beta, r)`` (``ds.regime.plot()`` draws r along x), per-mass
             fields ``(mass, beta, r)``; the same names and attributes as a
-            stored result (README "Results").
+            stored result (docs/results.md).
         """
         import xarray as xr  # lazy: tasks stays importable without xarray
 
