@@ -133,8 +133,10 @@ def field_attrs(name: str) -> dict[str, object]:
             np.int8
         )
         attrs["flag_meanings"] = "not_computed " + flags["flag_meanings"]
-    elif name == "regimes_reached":
-        attrs["flag_masks"] = np.array(sorted(REACHED_BITS), dtype=np.int8)
+    elif name == "regimes_reached":  # a bit field: each bit tested by mask and value (CF 3.5)
+        bits = np.array(sorted(REACHED_BITS), dtype=np.int8)
+        attrs["flag_masks"] = bits
+        attrs["flag_values"] = bits.copy()
         attrs["flag_meanings"] = " ".join(REACHED_BITS[b] for b in sorted(REACHED_BITS))
     elif name in FLAGS:
         attrs.update(FLAGS[name])
