@@ -2,28 +2,20 @@
 
 from __future__ import annotations
 
-import json
-
 import numpy as np
 import pytest
 import xarray as xr
 
-from analysis import boundaries, figures
-from analysis.design import characteristic_r, optimal_beta
+from analysis import figures
+from analysis.design import characteristic_r, map_dataset, optimal_beta
 from analysis.report import _max_rel, percent
 from analysis.scoring import BoundaryDeviation, score_dataset
-from tasks import Scene, classify
+from tasks import Scene
 
 
 def scene_map(scene: Scene, r: np.ndarray, beta: np.ndarray) -> xr.Dataset:
     """A labelled in-memory map with the closed-form bounds and the scene attributes."""
-    res = classify(scene, *np.meshgrid(r, beta, indexing="ij"))
-    ds = res.to_dataset(r, beta, scene)
-    for method in ("paper", "exact"):
-        bc, bm = boundaries(scene, r, method=method)
-        ds[f"beta_continuous_{method}"] = ("r", bc)
-        ds[f"beta_motion_{method}"] = ("r", bm)
-    return ds.assign_attrs(scene=json.dumps(scene.to_dict()))
+    return map_dataset(scene, r, beta)
 
 
 @pytest.fixture(scope="module")

@@ -7,15 +7,15 @@ contain the closed form (the numbers docs/results.md quotes).
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 from matplotlib.figure import Figure
 
-from analysis import boundaries, figures
+from analysis import figures
+from analysis.design import map_dataset
 from analysis.scoring import score_dataset
-from tasks import Scene, classify
+from tasks import Scene
 
 OUT = Path(__file__).resolve().parent
 R = np.linspace(0.02, 2.5, 125)
@@ -24,13 +24,7 @@ BETA = np.linspace(0.0, 1.5, 61)
 
 def scene_map(scene: Scene):
     """The map of one panel with the closed-form boundaries, as a stored scene."""
-    res = classify(scene, *np.meshgrid(R, BETA, indexing="ij"))
-    ds = res.to_dataset(R, BETA, scene)
-    for method in ("paper", "exact"):
-        bc, bm = boundaries(scene, R, method=method)
-        ds[f"beta_continuous_{method}"] = ("r", bc)
-        ds[f"beta_motion_{method}"] = ("r", bm)
-    return ds.assign_attrs(scene=json.dumps(scene.to_dict()))
+    return map_dataset(scene, R, BETA)
 
 
 def main() -> None:
