@@ -342,7 +342,7 @@ def test_benchmarks_page_names_a_script_for_every_measurement():
     text = (ROOT / "docs" / "benchmarks.md").read_text()
     sections = re.split(r"^## ", text, flags=re.M)[1:]
     for section in sections:
-        scripts = re.findall(r"benchmarks/(\w+\.py)|`(study bench)", section)
+        scripts = re.findall(r"benchmarks/(\w+\.py)|`(study (?:bench|run|report)) ", section)
         assert scripts, section.splitlines()[0]
         for script, _ in scripts:
             assert not script or (ROOT / "benchmarks" / script).exists(), script
