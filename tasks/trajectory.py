@@ -109,8 +109,9 @@ class Trajectory:
         """
         tau = np.asarray(tau, dtype=float)
         start, end = float(self.tau[0]), float(self.tau[-1])
-        if self.periodic:
-            tau = start + np.mod(tau - start, end - start)
+        if self.periodic:  # times outside the recorded period: the same phase inside it
+            inside = (tau >= start) & (tau <= end)
+            tau = np.where(inside, tau, start + np.mod(tau - start, end - start))
         order = np.argsort(tau.ravel())
         flat = np.ascontiguousarray(tau.ravel()[order])
         if flat.size and (flat[0] < start or flat[-1] > end):
