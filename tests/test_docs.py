@@ -347,3 +347,14 @@ def test_benchmarks_page_names_a_script_for_every_measurement():
         for script, _ in scripts:
             assert not script or (ROOT / "benchmarks" / script).exists(), script
     assert not HASH.search(text) and "this round" not in text and "(before" not in text
+
+
+def test_preset_table_is_the_code():
+    from tasks import PRESETS
+
+    rows = md_table((ROOT / "docs" / "api.md").read_text(), "| setting | fast | balanced |")
+    assert rows
+    for row in rows:
+        (name,) = names(row[0])
+        for preset, cell in zip(("fast", "balanced", "exact"), row[1:4], strict=True):
+            assert float(cell) == float(getattr(PRESETS[preset], name)), (name, preset)
