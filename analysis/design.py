@@ -66,6 +66,41 @@ def optimal_beta(ds: xr.Dataset, mass: int = 1, frame: str = "absolute") -> xr.D
     )
 
 
+def map_dataset(
+    scene: Scene, r: np.ndarray, beta: np.ndarray, fidelity: str = "balanced", **settings: object
+) -> xr.Dataset:
+    """Classify the grid ``r`` x ``beta`` of one scene in this process and label it as a
+    stored grid scene: every result field, both closed-form boundaries along r and the
+    scene attribute, so the figures and scores of :mod:`analysis` take it as they take
+    a scene of a result file.
+
+    Parameters
+    ----------
+    scene : tasks.Scene
+    r, beta : numpy.ndarray
+        1-D axes.
+    fidelity, **settings
+        As in :func:`tasks.classify`.
+
+    Returns
+    -------
+    xarray.Dataset
+        Dims ``(beta, r)``, per-mass fields ``(mass, beta, r)``, boundaries ``(r)``.
+    """
+    from analysis.closed_form import boundaries
+    from tasks.classifier import classify
+
+    r = np.asarray(r, dtype=float)
+    beta = np.asarray(beta, dtype=float)
+    res = classify(scene, *np.meshgrid(r, beta, indexing="ij"), fidelity=fidelity, **settings)
+    ds = res.to_dataset(r, beta, scene)
+    for method in ("paper", "exact"):
+        bc, bm = boundaries(scene, r, method=method)
+        ds[f"beta_continuous_{method}"] = ("r", bc)
+        ds[f"beta_motion_{method}"] = ("r", bm)
+    return ds.assign_attrs(scene=json.dumps(scene.to_dict()))
+
+
 def scene_of(ds: xr.Dataset) -> Scene | None:
     """The :class:`tasks.Scene` of one (gamma, kappa) plane of a stored scene, if known."""
     if "scene" not in ds.attrs:

@@ -62,6 +62,9 @@ _METHOD_MARKERS: dict[str, dict[str, object]] = {
     "exact": {"marker": "o", "markersize": 3.5},
 }
 _METHOD_COLOURS: dict[str, str] = {"paper": "#d62728", "exact": "#1f77b4"}
+#: An amplitude at most this fraction of the largest one is 0 in the response figure
+#: (a held mass has amplitude 0 up to rounding).
+HELD_AMPLITUDE = 1e-12
 _PAD = 0.03  # fraction of the axis range by which clipped values overshoot it
 #: Axis names of the paper: r_1 = omega sqrt(m_1/k_1) (Eq. 7) and beta (Eq. 8).
 R_LABEL = r"$r_1$"
@@ -136,7 +139,8 @@ def _ratio_text(value: object) -> str:
 
 
 def scene_title(ds: xr.Dataset, swept: bool = True) -> str:
-    """``2DOF, ground-fixed wall on m_1, gamma = 1, kappa = 0.5`` from a scene's attributes
+    """``2DOF, ground-fixed wall on $m_{1}$, $\\gamma$ = 1, $\\kappa$ = 0.5`` (matplotlib
+    mathtext) from a scene's attributes
     and its scalar gamma / kappa coordinates (swept ratios: ``gamma swept`` unless
     ``swept`` is False, for a figure whose panels name them)."""
     import json
@@ -149,9 +153,12 @@ def scene_title(ds: xr.Dataset, swept: bool = True) -> str:
     j = j or scene.get("contact_mass", 1)
     if contact is None or dof is None:
         return str(attrs.get("scene_label") or attrs.get("scene_name", ""))
-    where = f"m_{j}-m_{int(j) + 1}" if contact == "mass" else f"m_{j}"
     size = "SDOF" if int(dof) == 1 else f"{dof}DOF"
-    parts = [f"{size}, {CONTACT_NAMES.get(contact, contact)} on {where}"]
+    if contact == "mass":
+        where = f"contact between $m_{{{j}}}$ and $m_{{{int(j) + 1}}}$"
+    else:
+        where = f"{CONTACT_NAMES.get(contact, contact)} on $m_{{{j}}}$"
+    parts = [f"{size}, {where}"]
     if int(dof) > 1:
         for name, sym in (("gamma", "$\\gamma$"), ("kappa", "$\\kappa$")):
             if name in ds.coords and ds[name].ndim == 0:
@@ -477,7 +484,10 @@ def deviation_figure(
 
     With ``step`` (the beta step of the map) deviations are drawn in grid steps
     and the band of half a step, the resolution of a boundary read from the
-    grid, is shaded: a closed form inside it is as right as the grid can tell.
+    grid, is shaded. A column whose bracket contains the closed form agrees as
+    far as the grid can tell and is drawn at 0 (its midpoint may be half a
+    step away: a closed form on a grid node is the bracket's upper end); the
+    others at the bracket midpoint minus the closed form, at least half a step.
     Columns without a finite deviation (open brackets, infinite bounds) leave
     gaps, never lines across them; pooled sweeps (r repeats) are markers only.
     The legend is outside the axes.
@@ -512,6 +522,8 @@ def deviation_figure(
             if dev is None:
                 continue
             r, d = dev.r, dev.deviation / unit
+            if dev.consistent is not None:  # the bracket holds the closed form: agreement
+                d = np.where(dev.consistent & np.isfinite(d), 0.0, d)
             repeated = np.unique(r).size < r.size
             order = np.argsort(r, kind="stable")
             (line,) = ax.plot(
@@ -536,6 +548,7 @@ def deviation_figure(
     legend = list(handles.values())
     if step:
         legend.append(Patch(facecolor="0.9", label="within half a grid step"))
+        legend.append(Line2D([], [], linestyle="none", label="0: closed form in the bracket"))
     if legend:
         fig.legend(handles=legend, loc="outside right center", fontsize="small")
     if title:
@@ -582,32 +595,59 @@ def response_figure(
     beta = ds["beta"].values
     picks = np.unique(np.linspace(0, beta.size - 1, min(n_beta, beta.size)).round().astype(int))
     values = amp.values
-    positive = values[np.isfinite(values) & (values > 0)]
-    hi = float(positive.max()) if positive.size else 1.0
+    finite = np.isfinite(values)
+    hi = float(values[finite].max()) if finite.any() and values[finite].max() > 0 else 1.0
+    # a log axis has no 0: an amplitude of 0 (a held mass, or an antiresonance at
+    # beta = 0) is drawn as no line, and the r where the smallest amplitude is 0 as a
+    # bar along the bottom; smaller positive values run off the bottom of the axis
+    zero = finite & (values <= HELD_AMPLITUDE * hi)
+    positive = values[finite & ~zero]
     floor = max(float(positive.min()) if positive.size else 1e-3, 1e-4 * hi)
-    clipped = np.where(np.isfinite(values), np.maximum(values, floor), np.nan)
-    envelope = np.maximum(best["amplitude_minimum"].values, floor)
+    shown = np.where(finite & ~zero, values, np.nan)
+    minimum = best["amplitude_minimum"].values
+    held = np.isfinite(minimum) & (minimum <= HELD_AMPLITUDE * hi)
+    envelope = np.where(held, np.nan, minimum)
     fig = new_figure(7.6, 6.2)
     top, bottom = fig.subplots(2, 1, sharex=True, height_ratios=[3, 2])
     cmap = colormaps["viridis"]
     handles = []
     for n, i in enumerate(picks):
         colour = cmap(n / max(1, len(picks) - 1))
-        (line,) = top.plot(r, clipped[i], color=colour, linewidth=1.1)
+        (line,) = top.plot(r, shown[i], color=colour, linewidth=1.1)
         line.set_label(rf"$\beta$ = {beta[i]:.3g}")
         handles.append(line)
     (env,) = top.plot(r, envelope, color="k", linewidth=2.2, alpha=0.55, zorder=1)
     env.set_label("smallest over the grid's $\\beta$")
     handles.append(env)
+    if held.any():
+        edges = _edges(r)
+        runs = np.flatnonzero(np.diff(np.concatenate(([0], held.astype(int), [0]))))
+        for k, (a, b) in enumerate(zip(runs[::2], runs[1::2], strict=True)):
+            bar = top.axvspan(edges[a], edges[b], ymin=0.0, ymax=0.035, color="0.35", lw=0)
+            if k == 0:
+                bar.set_label(f"smallest amplitude of $m_{{{mass}}}$ is 0")
+                handles.append(bar)
     top.set_yscale("log")
     top.set_ylim(0.7 * floor, 1.5 * hi)
     which = "absolute" if frame == "absolute" else "relative to the base"
-    top.set_ylabel(
-        f"amplitude of $m_{{{mass}}}$ / Y ({which});\nsmaller values (stuck: 0) at the bottom",
-        fontsize="small",
-    )
+    top.set_ylabel(f"amplitude of $m_{{{mass}}}$ / Y ({which})", fontsize="small")
     top.set_xlim(float(r.min()), float(r.max()))
-    bottom.plot(r, best["beta_optimal"].values, "k.-", linewidth=0.9, markersize=3)
+    # where the smallest amplitude is 0 the "optimum" is only the smallest beta that
+    # holds the mass, the motion bound (drawn below): not an optimum, so not drawn
+    optimum = np.where(held, np.nan, best["beta_optimal"].values)
+    bottom.plot(r, optimum, "k.-", linewidth=0.9, markersize=3)
+    if held.all():
+        bottom.text(
+            0.02,
+            0.96,
+            f"$m_{{{mass}}}$ is held (amplitude 0) at every r from the motion bound up:\n"
+            "the smallest amplitude is 0 there, so no optimal $\\beta$ is drawn",
+            transform=bottom.transAxes,
+            ha="left",
+            va="top",
+            fontsize="small",
+            bbox={"facecolor": "white", "edgecolor": "0.7", "alpha": 0.9},
+        )
     for m in available_methods(ds, ("exact",)):
         for name in BOUNDARIES:
             bottom.plot(

@@ -27,11 +27,14 @@ from analysis import figures, starts
 from analysis.scoring import (
     REGIME_ORDER,
     Agreement,
+    is_adaptive,
     scene_kind,
     score_dataset,
+    simulated_only,
     sweep_dims,
 )
 from tasks import regimes
+from tasks.adaptive import VERIFY_AGREE, VERIFY_NONE, disagreement_upper_bound
 
 #: At most this many undetermined points (or non-monotone columns) are listed per scene.
 MAX_LISTED = 50
@@ -76,7 +79,7 @@ def open_result(path: str | os.PathLike) -> tuple[dict[str, xr.Dataset], dict[st
 
 def _needed(ds: xr.Dataset) -> xr.Dataset:
     """The variables the report reads (regime and boundaries), attributes kept."""
-    wanted = ("regime", "amplitude", "amplitude_relative")
+    wanted = ("regime", "amplitude", "amplitude_relative", "simulated", "verification")
     keep = [v for v in ds.data_vars if v in wanted or str(v).startswith("beta_")]
     keep += [v for v in ds.data_vars if v in starts.START_VARIABLES]
     return ds[keep].assign_attrs(ds.attrs)
@@ -154,6 +157,12 @@ def _summary(scores: Mapping[str, Mapping[str, Agreement]], kinds: Mapping[str, 
         if a.kind == "trace":
             n = a.numerical.r.size if a.numerical is not None else 0
             row = [f"`{name}`", "trace", f"{n} r values", "n/a", "n/a", "n/a"]
+        elif kinds[name] == "adaptive":  # scored on the simulated points only
+            n_sim = a.n_points - a.n_not_computed
+            row = [f"`{name}`", "adaptive", f"{n_sim} simulated of {a.n_points}"]
+            row += [a.n_determined, "0"]
+            n = a.n_undetermined
+            row.append(f"{n} ({_by_reason(a.undetermined_counts)})" if n else "0")
         else:
             row = [f"`{name}`", a.kind, a.n_points, a.n_determined, a.n_not_computed]
             n = a.n_undetermined
@@ -176,7 +185,7 @@ def _scene_header(name: str, ds: xr.Dataset) -> list[str]:
         ("dof", attrs.get("dof")),
         ("contact mass", attrs.get("contact_mass")),
         ("mode", attrs.get("mode")),
-        ("layout", scene_kind(ds)),
+        ("layout", "adaptive grid" if is_adaptive(ds) else scene_kind(ds)),
         ("sweeps", ", ".join(f"{d} ({ds.sizes[d]})" for d in sweep_dims(ds)) or "none"),
         ("scene", attrs.get("scene")),
     ]
@@ -331,20 +340,60 @@ def _undetermined(a: Agreement) -> list[str]:
     return lines
 
 
+def _adaptive(ds: xr.Dataset, whole: Mapping[str, Agreement] | None) -> list[str]:
+    """Simulated fraction, verification sample and whole-map agreement of an adaptive map."""
+    simulated = ds["simulated"].values.astype(bool)
+    lines = ["### Adaptive map", ""]
+    lines += [
+        f"- simulated: {int(simulated.sum())} of {simulated.size} points "
+        f"({percent(int(simulated.sum()), simulated.size)}, verification included); "
+        "the others copy every field from the nearest simulated corner of a uniform cell"
+    ]
+    if "verification" in ds:
+        v = ds["verification"].values
+        sampled = int((v != VERIFY_NONE).sum())
+        agree = int((v == VERIFY_AGREE).sum())
+        if sampled:
+            bound = disagreement_upper_bound(sampled, sampled - agree)
+            lines += [
+                f"- verification: {sampled} inferred points simulated, {agree} agree "
+                f"({percent(agree, sampled)}; disagreement below {100 * bound:.2f} % at 95 % "
+                "confidence)"
+            ]
+        else:
+            lines += ["- verification: no inferred point was sampled"]
+    for m, a in (whole or {}).items():
+        if a.kind != "trace":
+            lines += [
+                f"- {m} closed form, all points (inferred included): "
+                f"{_pct(a.n_correct, a.n_scored)}"
+            ]
+    return lines + [""]
+
+
 def _scene_section(
-    name: str, ds: xr.Dataset, by_method: Mapping[str, Agreement], images: Sequence[Path]
+    name: str,
+    ds: xr.Dataset,
+    by_method: Mapping[str, Agreement],
+    images: Sequence[Path],
+    whole: Mapping[str, Agreement] | None = None,
 ) -> list[str]:
     lines = _scene_header(name, ds)
     lines += [f"![{p.stem}]({p.name})" for p in images] + [""]
     if not by_method:
         return lines + ["No closed-form bounds in this scene: nothing scored.", ""] + _starts(ds)
     first = next(iter(by_method.values()))
+    if is_adaptive(ds):
+        lines += _adaptive(ds, whole)
     if first.kind != "trace":
         lines += ["### Confusion matrices", ""]
+        if is_adaptive(ds):
+            lines += ["Simulated points only (inferred points: the verification sample above).", ""]
         for a in by_method.values():
             lines += _confusion(a)
         lines += _per_regime(by_method)
-    lines += _deviations(by_method, grid_step(ds))
+    # the boundaries of an adaptive map are read from the whole map (resolved to a step)
+    lines += _deviations(whole if whole and is_adaptive(ds) else by_method, grid_step(ds))
     lines += _planes(by_method)
     if first.kind != "trace":
         lines += _undetermined(first)
@@ -452,8 +501,13 @@ def build_report(
     """
     out_dir = Path(out_dir)
     scenes, attrs = open_result(result_path)
-    scores = {name: score_dataset(ds) for name, ds in scenes.items()}
-    kinds = {name: scene_kind(ds) for name, ds in scenes.items()}
+    whole = {name: score_dataset(ds) for name, ds in scenes.items()}
+    # an adaptive map is scored on its simulated points (the map itself for boundaries)
+    scores = {
+        name: score_dataset(simulated_only(ds)) if is_adaptive(ds) else whole[name]
+        for name, ds in scenes.items()
+    }
+    kinds = {name: "adaptive" if is_adaptive(ds) else scene_kind(ds) for name, ds in scenes.items()}
     stamp = datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ")
     lines = [
         f"# Report: study `{attrs.get('study_name', Path(result_path).stem)}`",
@@ -469,9 +523,9 @@ def build_report(
     lines += _summary(scores, kinds)
     images: list[Path] = []
     for name, ds in scenes.items():
-        paths = _scene_figures(name, ds, scores[name], out_dir)
+        paths = _scene_figures(name, ds, whole[name], out_dir)
         images += paths
-        lines += _scene_section(name, ds, scores[name], paths)
+        lines += _scene_section(name, ds, scores[name], paths, whole[name])
     lines += _provenance(attrs, scenes)
     return "\n".join(lines), images
 

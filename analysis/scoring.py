@@ -397,12 +397,20 @@ class BoundaryDeviation:
 
         Infinite closed forms count: ``inf`` is consistent with ``(b, inf)``.
         """
+        inside = self.consistent
+        return None if inside is None else int(inside.sum())
+
+    @property
+    def consistent(self) -> np.ndarray | None:
+        """Per column: the bracket ``(lower, upper]`` contains the closed form (None if
+        traced). Such a column agrees with the closed form as far as the grid can tell,
+        wherever in the bracket the closed form lies (a closed form on a grid node sits
+        at the upper end, half a step from the midpoint)."""
         if self.bracket is None:
             return None
         lo, hi = self.bracket[:, 0], self.bracket[:, 1]
         cf = self.closed_form
-        inside = (lo < cf) & (cf <= hi)
-        return int(inside.sum())
+        return (lo < cf) & (cf <= hi)
 
     def _stat(self, values: np.ndarray, how) -> float:
         v = values[np.isfinite(values)]
@@ -809,6 +817,20 @@ def scene_kind(ds: xr.Dataset) -> str:
     if "point" in ds.dims:
         return "points"
     return "grid"
+
+
+def is_adaptive(ds: xr.Dataset) -> bool:
+    """An adaptive map (``mode = "adaptive"``): a grid whose points are simulated or
+    inferred (variable ``simulated``)."""
+    return ds.attrs.get("mode") == "adaptive" or "simulated" in ds.data_vars
+
+
+def simulated_only(ds: xr.Dataset) -> xr.Dataset:
+    """An adaptive map with every inferred point's ``regime`` set to ``not_computed``, so
+    that scores count simulated points only (inferred points copy a simulated corner:
+    scoring them would count those corners again; the verification sample measures them)."""
+    regime = ds["regime"].where(ds["simulated"].astype(bool), regimes.NOT_COMPUTED)
+    return ds.assign(regime=regime.astype(ds["regime"].dtype))
 
 
 def sweep_dims(ds: xr.Dataset) -> tuple[str, ...]:

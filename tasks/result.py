@@ -55,8 +55,19 @@ FIELDS: dict[str, tuple[str, str]] = {
         "regimes reached over all starts, bit mask: 1 no_motion, 2 stick_slip, "
         "4 continuous, 8 undetermined",
     ),
-    "start_dependent": ("bool", "two starts reached different (determined) regimes"),
+    "start_dependent": ("bool", "two starts reached different determined regimes"),
 }
+
+#: ``long_name`` of the fields whose meaning does not begin with a short name
+#: followed by a parenthesis (every other ``long_name`` is its meaning without its
+#: trailing parenthesis; the full meaning is the ``comment``).
+LONG_NAMES: dict[str, str] = {
+    "asymptotic": "no motion reached asymptotically",
+    "regimes_reached": "regimes reached over all starts (bit mask)",
+}
+
+#: Bits of ``regimes_reached`` (CF ``flag_masks`` / ``flag_meanings``).
+REACHED_BITS: dict[int, str] = {1: "no_motion", 2: "stick_slip", 4: "continuous", 8: "undetermined"}
 
 #: CF attributes of the coordinates of a result (stored or in memory).
 COORD_ATTRS: dict[str, dict[str, str]] = {
@@ -110,7 +121,7 @@ def field_attrs(name: str) -> dict[str, object]:
     ``comment``), ``units`` and, for coded fields, ``flag_values`` /
     ``flag_meanings`` (``regime``: :mod:`tasks.regimes`)."""
     meaning = FIELDS[name][1]
-    short = meaning.split(" (")[0]  # the name; the details go to the comment
+    short = LONG_NAMES.get(name, meaning.split(" (")[0])  # the details go to the comment
     attrs: dict[str, object] = {"long_name": short}
     if short != meaning:
         attrs["comment"] = meaning
@@ -122,6 +133,11 @@ def field_attrs(name: str) -> dict[str, object]:
             np.int8
         )
         attrs["flag_meanings"] = "not_computed " + flags["flag_meanings"]
+    elif name == "regimes_reached":  # a bit field: each bit tested by mask and value (CF 3.5)
+        bits = np.array(sorted(REACHED_BITS), dtype=np.int8)
+        attrs["flag_masks"] = bits
+        attrs["flag_values"] = bits.copy()
+        attrs["flag_meanings"] = " ".join(REACHED_BITS[b] for b in sorted(REACHED_BITS))
     elif name in FLAGS:
         attrs.update(FLAGS[name])
     else:
@@ -199,7 +215,7 @@ class ClassifyResult:
         xarray.Dataset
             Dims ``(beta, r)`` (``ds.regime.plot()`` draws r along x), per-mass
             fields ``(mass, beta, r)``; the same names and attributes as a
-            stored result (README "Results").
+            stored result (docs/results.md).
         """
         import xarray as xr  # lazy: tasks stays importable without xarray
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from tasks import kernel
 from tasks.classifier import result_from_kernel, scene_modes_cached, settings_args
@@ -84,13 +85,40 @@ class Trajectory:
         code = {v: k for k, v in EVENT_KINDS.items()}[name]
         return self.kind == code
 
-    def sample(self, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Exact state ``(x, x')`` at times ``tau`` within the trajectory (closed form)."""
+    @property
+    def periodic(self) -> bool:
+        """The stretch is one converged steady-state period (``start="steady"``)."""
+        return bool(
+            self.result is not None
+            and bool(self.result.converged)
+            and self.status == 0
+            and np.isclose(self.tau[-1] - self.tau[0], 2 * np.pi * int(self.result.period))
+        )
+
+    def sample(self, tau: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+        """Exact state ``(x, x')`` at times ``tau`` (closed form).
+
+        A steady-state trajectory (:attr:`periodic`) is the periodic orbit, so
+        any time is mapped into its period (``sample(0.0)`` is the state at
+        ``tau = 0`` although the recorded period may start at the section
+        phase); any other trajectory is sampled within its stretch only.
+
+        Returns
+        -------
+        x, xd : ndarray, shape ``(*np.shape(tau), N)``
+        """
         tau = np.asarray(tau, dtype=float)
+        start, end = float(self.tau[0]), float(self.tau[-1])
+        if self.periodic:  # times outside the recorded period: the same phase inside it
+            inside = (tau >= start) & (tau <= end)
+            tau = np.where(inside, tau, start + np.mod(tau - start, end - start))
         order = np.argsort(tau.ravel())
         flat = np.ascontiguousarray(tau.ravel()[order])
-        if flat.size and (flat[0] < self.tau[0] or flat[-1] > self.tau[-1]):
-            raise ValueError("tau: outside the simulated stretch")
+        if flat.size and (flat[0] < start or flat[-1] > end):
+            raise ValueError(
+                f"tau: outside the simulated stretch [{start:.6g}, {end:.6g}] "
+                "(only a converged steady state is periodic)"
+            )
         states = kernel.sample_states(self._ctx, self._work, self._records, flat)
         back = np.empty_like(states)
         back[order] = states

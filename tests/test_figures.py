@@ -2,28 +2,20 @@
 
 from __future__ import annotations
 
-import json
-
 import numpy as np
 import pytest
 import xarray as xr
 
-from analysis import boundaries, figures
-from analysis.design import characteristic_r, optimal_beta
+from analysis import figures
+from analysis.design import characteristic_r, map_dataset, optimal_beta
 from analysis.report import _max_rel, percent
 from analysis.scoring import BoundaryDeviation, score_dataset
-from tasks import Scene, classify
+from tasks import Scene
 
 
 def scene_map(scene: Scene, r: np.ndarray, beta: np.ndarray) -> xr.Dataset:
     """A labelled in-memory map with the closed-form bounds and the scene attributes."""
-    res = classify(scene, *np.meshgrid(r, beta, indexing="ij"))
-    ds = res.to_dataset(r, beta, scene)
-    for method in ("paper", "exact"):
-        bc, bm = boundaries(scene, r, method=method)
-        ds[f"beta_continuous_{method}"] = ("r", bc)
-        ds[f"beta_motion_{method}"] = ("r", bm)
-    return ds.assign_attrs(scene=json.dumps(scene.to_dict()))
+    return map_dataset(scene, r, beta)
 
 
 @pytest.fixture(scope="module")
@@ -47,8 +39,9 @@ def test_percent_never_rounds_a_miss_to_100():
 def test_map_title_axis_names_and_marked_frequencies(fig04_panel):
     fig = figures.regime_map_figure(fig04_panel)
     title = fig._suptitle.get_text()
-    for part in ("2DOF", "ground-fixed wall", "m_1", r"$\gamma$ = 1", r"$\kappa$ = 0.5"):
+    for part in ("2DOF", "ground-fixed wall on $m_{1}$", r"$\gamma$ = 1", r"$\kappa$ = 0.5"):
         assert part in title, title
+    assert "m_1" not in title.replace("$m_{1}$", "")  # no literal m_1: mathtext
     (ax,) = fig.axes
     assert ax.get_xlabel() == "$r_1$" and ax.get_ylabel() == r"$\beta$"
     # resonances of the frictionless chain: det(K - r^2 M) = 0, K = [[1.5, -0.5], [-0.5, 0.5]]
@@ -74,8 +67,30 @@ def test_deviation_in_grid_steps_with_gaps(fig04_panel):
     (line,) = [ln for ln in top.get_lines() if ln.get_color() == "#1f77b4"]
     y = np.asarray(line.get_ydata(), dtype=float)
     assert np.isnan(y[10]) and np.isfinite(y[9]) and np.isfinite(y[11])  # a gap, no line across
-    np.testing.assert_allclose(y, dev.deviation / step)  # in grid steps
+    # in grid steps; a column whose bracket holds the closed form agrees: drawn at 0
+    inside = dev.consistent & np.isfinite(dev.deviation)
+    assert inside.sum() > 10
+    np.testing.assert_allclose(y, np.where(inside, 0.0, dev.deviation / step))
+    assert np.all(np.abs(y[np.isfinite(y) & ~inside]) >= 0.5 - 1e-9)  # outside: half a step+
     assert all(ax.get_legend() is None for ax in fig.axes) and fig.legends
+
+
+def test_a_closed_form_on_a_grid_node_is_drawn_as_agreement(fig04_panel):
+    """beta = 0, 0.1, ..., 1.5 holds the motion bound 1 of a ground contact on m_1 as a
+    node: the bracket (0.9, 1] contains it, its midpoint is half a step below; drawn at 0."""
+    ds = scene_map(
+        Scene("ground", 2, 1, gamma=1.0, kappa=0.5),
+        np.linspace(0.05, 2.5, 12),
+        np.linspace(0.0, 1.5, 16),
+    )
+    scores = score_dataset(ds)
+    dev = scores["exact"].deviations["motion"]
+    on_node = np.isclose(dev.closed_form, 1.0) & dev.consistent
+    assert on_node.sum() >= 6
+    np.testing.assert_allclose(dev.deviation[on_node] / 0.1, -0.5)  # the midpoint
+    bottom = figures.deviation_figure(scores, step=0.1).axes[1]
+    (line,) = [ln for ln in bottom.get_lines() if ln.get_color() == "#1f77b4"]
+    np.testing.assert_allclose(np.asarray(line.get_ydata(), dtype=float)[on_node], 0.0)
 
 
 def test_relative_deviation_only_where_the_closed_form_is_clear_of_zero():
@@ -98,8 +113,36 @@ def test_optimal_beta_and_response_figure():
     np.testing.assert_allclose(best["beta_optimal"].values, 1.0)
     np.testing.assert_allclose(best["amplitude_minimum"].values, 0.0, atol=1e-12)
     fig = figures.response_figure(ds, mass=1, n_beta=4)
-    assert fig.axes[1].get_xlabel() == "$r_1$"
+    top, bottom = fig.axes
+    assert bottom.get_xlabel() == "$r_1$"
     assert "SDOF" in fig._suptitle.get_text()
+    # a held mass (amplitude 0) has no point on the log axis (no line at a floor value) ...
+    held = beta >= 1.0
+    for line in top.get_lines():
+        y = np.asarray(line.get_ydata(), dtype=float)
+        if y.size == r.size and line.get_label().startswith(r"$\beta$ = "):
+            b = float(line.get_label().split("= ")[1])
+            assert np.all(np.isnan(y)) == (b >= 1.0), (b, y)
+    assert held.any() and any("is 0" in str(p.get_label()) for p in top.patches)
+    # ... and where the smallest amplitude is 0 the "optimum" is only the motion bound:
+    # not drawn, and the figure says why
+    (opt,) = [ln for ln in bottom.get_lines() if ln.get_marker() == "."]
+    assert np.all(np.isnan(np.asarray(opt.get_ydata(), dtype=float)))
+    assert any("no optimal" in t.get_text() for t in bottom.texts)
+
+
+def test_response_figure_draws_the_optimum_where_the_mass_moves():
+    """A contact between masses: the mass keeps moving when the contact is stuck, so the
+    smallest amplitude is positive and the optimal beta is drawn."""
+    scene = Scene("mass", 2, 1, gamma=1.0, kappa=1.0)
+    r = np.array([0.4, 1.4])
+    ds = scene_map(scene, r, np.linspace(0.0, 1.5, 7))
+    best = optimal_beta(ds, mass=1)
+    assert np.all(best["amplitude_minimum"].values > 1e-3)
+    (opt,) = [
+        ln for ln in figures.response_figure(ds).axes[1].get_lines() if ln.get_marker() == "."
+    ]
+    np.testing.assert_allclose(opt.get_ydata(), best["beta_optimal"].values)
 
 
 def test_characteristic_r_of_fig17_and_base_contacts():

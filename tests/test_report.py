@@ -288,3 +288,48 @@ def test_cli_report(tree_file, tmp_path, run_cli):
     assert proc.returncode == 0, proc.stderr
     assert (out / "report.md").is_file()
     _assert_png(out / "grid_map.png")
+
+
+def adaptive_dataset() -> xr.Dataset:
+    """A 4 x 4 adaptive map: the simulated points agree with the closed forms; two
+    inferred points carry a label the closed forms contradict, one of them sampled by
+    the verification and found wrong."""
+    regime = np.array([[C, C, S, N], [C, S, S, N], [C, C, S, N], [C, C, S, N]])
+    simulated = np.array([[1, 0, 1, 1], [1, 0, 1, 1], [1, 0, 1, 1], [1, 1, 1, 1]], dtype=bool)
+    regime[0, 1] = N  # inferred, wrong, not sampled
+    regime[1, 1] = N  # inferred, wrong, sampled: contradicted
+    verification = np.zeros((4, 4), dtype=np.int8)
+    verification[1, 1] = 2
+    verification[2, 1] = 1  # inferred C, sampled, confirmed
+    dims = ("r", "beta")
+    bounds = {
+        f"beta_{b}_{m}": [v] * 4
+        for m in ("paper", "exact")
+        for b, v in (("continuous", 0.5), ("motion", 1.0))
+    }
+    return xr.Dataset(
+        {
+            **_fields(regime, dims),
+            "simulated": xr.Variable(dims, simulated),
+            "verification": xr.Variable(dims, verification),
+            **_bounds(("r",), **bounds),
+        },
+        coords={"r": [0.5, 1.0, 1.5, 2.0], "beta": [0.0, 0.4, 0.8, 1.2]},
+        attrs={**_global_attrs(), **_scene_attrs("adaptive", mode="adaptive")},
+    )
+
+
+def test_adaptive_report_scores_simulated_points_and_reports_the_verification(tmp_path):
+    ds = adaptive_dataset()
+    path = tmp_path / "adaptive.nc"
+    ds.to_netcdf(path, encoding=_encoding(ds))
+    text = write_report(path, tmp_path / "rep").read_text()
+    summary = next(line for line in text.splitlines() if line.startswith("| `adaptive`"))
+    # 13 simulated points, all agreeing with the closed forms; the 3 inferred ones are
+    # not scored as if they had been simulated
+    assert "| adaptive | 13 simulated of 16 |" in summary, summary
+    assert "100.00 % (13/13)" in summary
+    assert "- simulated: 13 of 16 points (81.25 %" in text
+    assert "- verification: 2 inferred points simulated, 1 agree (50.00 %" in text
+    assert "all points (inferred included): 87.50 % (14/16)" in text
+    assert "- layout: `adaptive grid`" in text and "grid" not in summary.split("|")[2]
