@@ -18,12 +18,7 @@ def compile_once(stream: TextIO) -> float:
 
     if numba_cache.is_compiled():
         return 0.0
-    print(
-        "study: compiling the simulator once, about 30 s (minutes on a busy machine; "
-        f"cached in {numba_cache.cache_dir()} for later runs) ...",
-        file=stream,
-        flush=True,
-    )
+    print(numba_cache.compile_message("study"), file=stream, flush=True)
     seconds = numba_cache.compile_simulator()
     print(f"study: compiled in {seconds:.0f} s", file=stream, flush=True)
     return seconds

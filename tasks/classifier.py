@@ -6,7 +6,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from tasks import kernel, regimes
+from tasks import kernel, numba_cache, regimes
 from tasks.fidelity import Settings, resolve
 from tasks.model import SceneModes, scene_modes
 from tasks.result import FIELDS, ClassifyResult
@@ -134,6 +134,7 @@ def classify(
     scene_args = scene_modes_cached(scene).kernel_args()
     codes = start_codes(resolved)
     first = settings_args(resolved, codes[0])
+    numba_cache.announce_compile()  # one line on stderr before a first compile
     out, final = kernel.run_points(flat_r, flat_beta, scene_args, first)
     design, _ = kernel.orbit_designs(
         flat_r, flat_beta, scene_args, first, out, final, kernel.DESIGN_SAMPLES

@@ -110,7 +110,9 @@ def test_compile_is_announced(monkeypatch):
     monkeypatch.setattr(numba_cache, "compile_simulator", lambda: 31.4)
     out = io.StringIO()
     assert compile_once(out) == 31.4
-    assert out.getvalue().startswith("study: compiling the simulator once, about 30 s")
+    assert out.getvalue().startswith(
+        "study: compiling the simulator once (40 s to 2 min on 2 cores"
+    )
     monkeypatch.setattr(numba_cache, "is_compiled", lambda: True)
     assert compile_once(io.StringIO()) == 0.0
 

@@ -1,0 +1,142 @@
+"""Per-point constants: both phases' modal data at (r, beta), and the initial state.
+
+:func:`_context` turns a scene's modal data (:meth:`tasks.model.SceneModes.kernel_args`)
+and the solver settings (:func:`tasks.classifier.settings_args`) into the
+context tuple every cycle uses (entries ``CTX_*`` of :mod:`tasks.kernel.layout`)
+and the start of the simulation (:mod:`tasks.kernel.starts`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from tasks.kernel.layout import ALPHA, DELTA, LOAD_COS, N_ROWS, N_SCALARS, OMEGA, WORK_CAP
+from tasks.kernel.phases import _contact_force, _dot
+from tasks.kernel.starts import _held_response, _random_start, start_phase
+from tasks.regimes import IC_HELD, IC_RANDOM, IC_REST
+
+
+@njit(cache=True)
+def _event_cap(events):
+    """The per-cycle event limit implied by the fastest mode, as an int (capped at 1e9)."""
+    if not events < 1e9:
+        return 1_000_000_000
+    return int(events)
+
+
+@njit(cache=True)
+def _context(r, beta, scene, settings):
+    """Per-point constants of both phases, the held initial condition and its phase.
+
+    ``scene`` is :meth:`tasks.model.SceneModes.kernel_args`, ``settings`` is
+    :func:`tasks.classifier.settings_args`. Returns ``(ctx, work, X0, mode0,
+    ic_used)``: ``ctx`` is the tuple :func:`run_cycle` takes, ``X0 = (x, x')``
+    the initial section state.
+    """
+    (
+        gamma,
+        K,
+        b,
+        p0,
+        load_scales_r2,
+        lam,
+        phi,
+        phi_t_gamma,
+        w_slip,
+        f_slip,
+        T,
+        w,
+        lam_s,
+        phi_s,
+        phi_s_t_gamma_s,
+        load_s,
+        d_static,
+        proj,
+        g_load,
+        g_modes_s,
+        g_d0,
+    ) = scene
+    event_tol = settings[0]
+    step_fraction = settings[1]
+    max_events = settings[7]
+    initial_condition = settings[9]
+    max_work = settings[10]
+    n = gamma.shape[0]
+    m = lam_s.shape[0]
+    r2 = r * r
+    p = p0 * r2 if load_scales_r2 else p0.copy()
+    seg_slip = np.zeros((N_ROWS, n))
+    om_max = 1.0
+    for k in range(n):
+        om = math.sqrt(lam[k]) / r
+        seg_slip[OMEGA, k] = om
+        acc = 0.0
+        for i in range(n):
+            acc += phi[i, k] * p[i]
+        seg_slip[LOAD_COS, k] = acc / r2
+        seg_slip[DELTA, k] = w_slip[k]
+        om_max = max(om_max, om)
+    h_slip = step_fraction * math.pi / om_max
+    om_slip = om_max
+    seg_stick = np.zeros((N_ROWS, m))
+    om_max = 1.0
+    for k in range(m):
+        om = math.sqrt(lam_s[k]) / r
+        seg_stick[OMEGA, k] = om
+        acc = 0.0
+        for i in range(n):
+            acc += load_s[k, i] * p[i]
+        seg_stick[LOAD_COS, k] = acc / r2
+        seg_stick[ALPHA, k] = -g_modes_s[k]
+        om_max = max(om_max, om)
+    h_stick = step_fraction * math.pi / om_max
+    sc = np.zeros(N_SCALARS)
+    sc[WORK_CAP] = max_work
+    ctx = (
+        seg_slip,
+        seg_stick,
+        sc,
+        beta,
+        p,
+        K,
+        b,
+        w,
+        T,
+        phi,
+        phi_t_gamma,
+        phi_s,
+        phi_s_t_gamma_s,
+        proj,
+        f_slip / r2,
+        d_static / r2,
+        g_load,
+        _dot(g_load, p),
+        g_d0,
+        h_slip,
+        h_stick,
+        event_tol,
+        1e3 * event_tol,
+        max(max_events, _event_cap(8.0 * max(om_slip, om_max))),
+        max_work,
+    )
+    work = (np.zeros(n), np.zeros(n), np.zeros(m), np.zeros(m), np.zeros(2 * m))
+    # Held start: contact at d0 = 0, the rest on the forced response of the
+    # held system at tau = 0 (from rest if the held system is resonant).
+    X_held, held_exists = _held_response(seg_stick, phi_s, T, n)
+    ic_used = initial_condition
+    X = np.zeros(2 * n)
+    if initial_condition == IC_HELD or initial_condition >= IC_RANDOM:
+        if held_exists:
+            X = X_held
+        else:
+            ic_used = IC_REST
+    if initial_condition >= IC_RANDOM:
+        X = _random_start(X, gamma, K, p, r, beta, initial_condition - IC_RANDOM, settings[11])
+        ic_used = initial_condition
+        return ctx, work, X, start_phase(X, beta, ctx, 0.0), ic_used
+    g0 = _contact_force(p, 1.0, K, X[:n], g_load)
+    mode = 0 if abs(g0) <= beta else (1 if g0 > 0.0 else -1)
+    return ctx, work, X, mode, ic_used

@@ -1,0 +1,117 @@
+"""The creep rule: slips too small to be motion, and no motion reached asymptotically.
+
+A stick-slip orbit whose slip amplitude is below :func:`creep_threshold` is
+no motion (``SLIP_RTOL`` of :mod:`tasks.regimes`, docs/theory.md 3, creep); a
+stuck section from which the contact force can exceed beta only marginally
+(:func:`creep_settled`) ends a creep towards the stuck set.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from tasks.kernel.events import stick_force_bound
+from tasks.kernel.layout import (
+    CTX_B,
+    CTX_BETA,
+    CTX_DSTAT_R2,
+    CTX_G_COS,
+    CTX_G_D0,
+    CTX_K,
+    CTX_PHI_S_T_GAMMA_S,
+    CTX_PROJ,
+    CTX_SC,
+    CTX_SEG_STICK,
+    CTX_W,
+    OUT_AMP,
+    OUT_ASYMPTOTIC,
+    OUT_CONVERGED,
+    OUT_CYCLES,
+    OUT_IC,
+    OUT_PERIOD,
+    OUT_REGIME,
+    OUT_STICK,
+    OUT_STOPS,
+    ST_DMAX,
+    ST_DMIN,
+    ST_STUCK_TIME,
+    TWO_PI,
+)
+from tasks.kernel.phases import _dot, _start_stick
+from tasks.regimes import CREEP_FORCE_RTOL, NO_MOTION, SLIP_RTOL, STICK_SLIP
+
+
+@njit(cache=True)
+def creep_threshold(ctx, beta):
+    """Slip amplitude below which a slip is not motion: ``SLIP_RTOL * beta * c``.
+
+    ``c = b^T K^-1 b`` is the static compliance the contact sees, so ``beta c``
+    is the static deflection the friction force produces at the contact. A slip
+    of amplitude ``a`` changes the spring force at the contact by about
+    ``a / c``; below the threshold that is less than ``SLIP_RTOL`` of the
+    friction force, i.e. indistinguishable from holding with a friction ratio
+    changed by one part in ``1 / SLIP_RTOL`` (docs/theory.md 3, creep).
+    """
+    b = ctx[CTX_B]
+    c = _dot(b, np.linalg.solve(ctx[CTX_K], b))
+    return SLIP_RTOL * beta * abs(c)
+
+
+@njit(cache=True)
+def creep_settled(X, ctx, theta):
+    """A stuck section state from which ``|g|`` can exceed beta by at most
+    ``CREEP_FORCE_RTOL * beta``: whatever slips remain are driven by a force
+    excess of that order, and their amplitude (about excess^2 in units of the
+    static deflection, measured near the motion bound) stays below the creep
+    threshold; the limit is no motion."""
+    n = X.shape[0] // 2
+    seg = ctx[CTX_SEG_STICK]
+    sc = ctx[CTX_SC]
+    beta = ctx[CTX_BETA]
+    work = np.zeros(2 * seg.shape[1])
+    _start_stick(
+        seg,
+        sc,
+        X[:n].copy(),
+        X[n:].copy(),
+        theta,
+        beta,
+        ctx[CTX_B],
+        ctx[CTX_W],
+        ctx[CTX_PROJ],
+        ctx[CTX_PHI_S_T_GAMMA_S],
+        ctx[CTX_DSTAT_R2],
+        ctx[CTX_G_COS],
+        ctx[CTX_G_D0],
+        work,
+    )
+    bound = stick_force_bound(seg, sc)
+    return math.isfinite(bound) and bound <= beta * (1.0 + CREEP_FORCE_RTOL)
+
+
+@njit(cache=True)
+def _creep_limit(out, slip_tol):
+    """A converged stick-slip orbit whose slip is below the creep threshold is
+    no motion (reached asymptotically; the measured slip stays in ``out``)."""
+    if out[OUT_REGIME] == STICK_SLIP and out[OUT_AMP] < slip_tol:
+        out[OUT_REGIME] = NO_MOTION
+        out[OUT_STOPS] = 0.0
+        out[OUT_ASYMPTOTIC] = 1.0
+
+
+@njit(cache=True)
+def _asymptotic_no_motion(out, stats, cycles, ic_used):
+    """No motion reached asymptotically (:func:`creep_settled`): the last cycle's
+    slip amplitude and stick fraction are kept as diagnostics."""
+    out[OUT_REGIME] = NO_MOTION
+    out[OUT_CONVERGED] = 1.0
+    out[OUT_CYCLES] = cycles
+    out[OUT_STOPS] = 0.0
+    out[OUT_AMP] = 0.5 * (stats[ST_DMAX] - stats[ST_DMIN])
+    out[OUT_STICK] = stats[ST_STUCK_TIME] / TWO_PI
+    out[OUT_PERIOD] = 1.0
+    out[OUT_IC] = ic_used
+    out[OUT_ASYMPTOTIC] = 1.0

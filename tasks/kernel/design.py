@@ -1,0 +1,283 @@
+"""Design quantities of a converged orbit: amplitudes, contact force amplitude, dissipation.
+
+The orbit is replayed event by event and sampled exactly (closed-form phases);
+extrema between samples are located on the cubic Hermite interpolant of the
+exact values and velocities and evaluated exactly (docs/theory.md 2).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from tasks.kernel.context import _context
+from tasks.kernel.cycle import run_cycle
+from tasks.kernel.layout import (
+    CTX_B,
+    CTX_G_LOAD,
+    CTX_H_SLIP,
+    CTX_H_STICK,
+    CTX_K,
+    CTX_MAX_EVENTS,
+    CTX_P,
+    CTX_PHI,
+    CTX_SEG_SLIP,
+    LOAD_COS,
+    N_STATS,
+    OMEGA,
+    OUT_CONVERGED,
+    OUT_PERIOD,
+    OUT_REGIME,
+    REC_MODE,
+    REC_TAU,
+    REC_X,
+    ST_STATUS,
+    STATUS_OK,
+    TWO_PI,
+)
+from tasks.kernel.phases import _contact_force, _dot, _matvec
+from tasks.kernel.records import sample_states
+
+# Columns of :func:`orbit_designs`'s output, per point (n = number of masses):
+# [0, n) amplitude of the scene coordinate q_i (x_i; z_i = x_i - y for a base-fixed wall),
+# [n, 2n) amplitude of the other coordinate q_i - c cos(tau) (c = -1 base-fixed, else +1),
+# 2n the contact force amplitude, 2n + 1 the energy dissipated per excitation cycle.
+DESIGN_FORCE = 0  # offset from 2 n
+DESIGN_DISSIPATION = 1  # offset from 2 n
+#: Samples per excitation cycle (at least; more where modal periods are short).
+DESIGN_SAMPLES = 32
+#: Samples per excitation cycle at most (very stiff chains: the modes far above
+#: the excitation are then resolved only as far as this allows).
+DESIGN_MAX_SAMPLES = 4096
+
+
+@njit(cache=True)
+def _hermite_extremes(t0, t1, y0, y1, v0, v1, acc):
+    """Fold the extrema of ``y`` on ``[t0, t1]`` into ``acc``.
+
+    ``y`` and its derivative ``v`` are exact at both ends (``acc[4:6]``: the
+    smallest and largest exact value); a sign change of ``v`` marks an interior
+    extremum, located on the cubic Hermite interpolant (``acc[0:2]``: the
+    smallest and largest interpolated value, ``acc[2:4]``: their times, to be
+    evaluated exactly by the caller).
+    """
+    for t, y in ((t0, y0), (t1, y1)):
+        if y < acc[4]:
+            acc[4] = y
+        if y > acc[5]:
+            acc[5] = y
+        if y < acc[0]:
+            acc[0] = y
+            acc[2] = t
+        if y > acc[1]:
+            acc[1] = y
+            acc[3] = t
+    if v0 * v1 >= 0.0:
+        return
+    h = t1 - t0
+    # p(s) = y0 h00 + h v0 h10 + y1 h01 + h v1 h11 on s in [0, 1]; p'(s) / h:
+    # (6 s^2 - 6 s)(y0 - y1)/h + (3 s^2 - 4 s + 1) v0 + (3 s^2 - 2 s) v1
+    dy = (y0 - y1) / h
+    a = 6.0 * dy + 3.0 * v0 + 3.0 * v1
+    b = -6.0 * dy - 4.0 * v0 - 2.0 * v1
+    c = v0
+    s = -1.0
+    if abs(a) < 1e-300:
+        if b != 0.0:
+            s = -c / b
+    else:
+        disc = b * b - 4.0 * a * c
+        if disc >= 0.0:
+            sq = math.sqrt(disc)
+            q = -0.5 * (b + math.copysign(sq, b))
+            s1 = q / a
+            s2 = c / q if q != 0.0 else -1.0
+            if 0.0 < s1 < 1.0:
+                s = s1
+            elif 0.0 < s2 < 1.0:
+                s = s2
+    if not (0.0 < s < 1.0):
+        return
+    h00 = (1.0 + 2.0 * s) * (1.0 - s) ** 2
+    h10 = s * (1.0 - s) ** 2
+    h01 = s * s * (3.0 - 2.0 * s)
+    h11 = s * s * (s - 1.0)
+    y = y0 * h00 + h * v0 * h10 + y1 * h01 + h * v1 * h11
+    if y < acc[0]:
+        acc[0] = y
+        acc[2] = t0 + s * h
+    if y > acc[1]:
+        acc[1] = y
+        acc[3] = t0 + s * h
+
+
+@njit(cache=True)
+def orbit_design(r, beta, scene, settings, state, period, samples, dout):
+    """Design quantities of the converged orbit that starts at the section ``state``.
+
+    ``state`` is a row of :func:`run_points`' ``final`` (``x, x'``, phase, section
+    phase theta), ``period`` the orbit's period in excitation cycles. The orbit is
+    replayed event by event (:func:`run_cycle`) and sampled exactly (closed-form
+    phases, :func:`sample_states`) at least ``samples`` times per cycle and at
+    every event; extrema between samples are located on the cubic Hermite
+    interpolant of the exact values and velocities. Writes into ``dout``
+    (columns above): amplitudes (half peak-to-peak) of every coordinate in both
+    frames, the contact force amplitude (``beta`` while sliding, ``|g|`` while
+    stuck) and the energy dissipated per excitation cycle, ``beta`` times the
+    slip distance ``sum |delta (b . x)|`` over the slip phases, divided by
+    ``period`` (units k_1 Y^2; docs/theory.md 2). Returns the number of samples.
+    """
+    ctx, work = _context(r, beta, scene, settings)[:2]
+    n = (state.shape[0] - 2) // 2
+    c = -1.0 if scene[4] else 1.0  # other frame: z + cos tau (base) or x - cos tau
+    p = ctx[CTX_P]
+    K = ctx[CTX_K]
+    b = ctx[CTX_B]
+    g_load = ctx[CTX_G_LOAD]
+    if beta == 0.0:  # linear, undamped: the forced response (K - M)^-1 p cos tau
+        seg = ctx[CTX_SEG_SLIP]
+        phi = ctx[CTX_PHI]
+        for i in range(n):
+            v = 0.0
+            for k in range(n):
+                v += phi[i, k] * seg[LOAD_COS, k] / (seg[OMEGA, k] ** 2 - 1.0)
+            dout[i] = abs(v)
+            dout[n + i] = abs(v - c)
+        dout[2 * n + DESIGN_FORCE] = 0.0
+        dout[2 * n + DESIGN_DISSIPATION] = 0.0
+        return 0
+    theta = state[2 * n + 1]
+    rows = 32 * period  # grown (and the orbit replayed) if the events do not fit
+    rec = np.zeros((0, REC_X + 2 * n))
+    rec_n = np.zeros(1, dtype=np.int64)
+    stats = np.zeros(N_STATS)
+    while True:
+        rec = np.empty((rows, REC_X + 2 * n))
+        rec_n[0] = 0
+        mode = int(state[2 * n])
+        x = state[:n].copy()
+        xd = state[n : 2 * n].copy()
+        stick_start = theta
+        for k in range(period):
+            t0 = theta + TWO_PI * k
+            mode, stick_start = run_cycle(
+                x, xd, mode, stick_start, stats, ctx, work, rec, rec_n, t0, t0 + TWO_PI
+            )
+            if stats[ST_STATUS] != STATUS_OK:
+                break
+        if stats[ST_STATUS] != STATUS_OK:  # the replay ran out of budget: no answer
+            for i in range(dout.shape[0]):
+                dout[i] = np.nan
+            return 0
+        if rec_n[0] < rows or rows > period * (ctx[CTX_MAX_EVENTS] + 4):
+            break
+        rows *= 8
+    nr = rec_n[0]
+    rec = rec[:nr]
+    # sample times: every phase start and end, and at most h apart inside a phase
+    h = min(TWO_PI / samples, 0.5 * min(ctx[CTX_H_SLIP], ctx[CTX_H_STICK]))
+    h = max(h, TWO_PI / DESIGN_MAX_SAMPLES)
+    count = 1
+    for j in range(nr - 1):
+        length = rec[j + 1, REC_TAU] - rec[j, REC_TAU]
+        if length > 0.0:
+            count += max(1, int(math.ceil(length / h)))
+    taus = np.empty(count)
+    slip = 0.0
+    sliding = False
+    i_s = 0
+    for j in range(nr - 1):
+        length = rec[j + 1, REC_TAU] - rec[j, REC_TAU]
+        if length <= 0.0:
+            continue
+        if rec[j, REC_MODE] != 0.0:
+            sliding = True
+            d0 = 0.0
+            d1 = 0.0
+            for i in range(n):
+                d0 += b[i] * rec[j, REC_X + i]
+                d1 += b[i] * rec[j + 1, REC_X + i]
+            slip += abs(d1 - d0)
+        k_j = max(1, int(math.ceil(length / h)))
+        for k in range(k_j):
+            taus[i_s] = rec[j, REC_TAU] + length * k / k_j
+            i_s += 1
+    taus[count - 1] = rec[nr - 1, REC_TAU]
+    states = sample_states(ctx, work, rec, taus)
+    acc = np.empty(6)
+    refine = np.empty(2)
+    for which in range(2):
+        cf = 0.0 if which == 0 else -c
+        for i in range(n):
+            acc[0] = np.inf
+            acc[1] = -np.inf
+            acc[4] = np.inf
+            acc[5] = -np.inf
+            for s in range(count - 1):
+                ta = taus[s]
+                tb = taus[s + 1]
+                ya = states[s, i] + cf * math.cos(ta)
+                yb = states[s + 1, i] + cf * math.cos(tb)
+                va = states[s, n + i] - cf * math.sin(ta)
+                vb = states[s + 1, n + i] - cf * math.sin(tb)
+                _hermite_extremes(ta, tb, ya, yb, va, vb, acc)
+            # the interpolated extrema evaluated exactly (error O(h^6), never above)
+            refine[0] = min(acc[2], acc[3])
+            refine[1] = max(acc[2], acc[3])
+            exact = sample_states(ctx, work, rec, refine)
+            lo = acc[4]
+            hi = acc[5]
+            for k in range(2):
+                y = exact[k, i] + cf * math.cos(refine[k])
+                lo = min(lo, y)
+                hi = max(hi, y)
+            dout[which * n + i] = 0.5 * (hi - lo)
+    if sliding:
+        force = beta
+    else:  # stuck the whole orbit: the largest |g| (g' = -g_load . (p sin tau + K x'))
+        acc[0] = np.inf
+        acc[1] = -np.inf
+        acc[4] = np.inf
+        acc[5] = -np.inf
+        kxd = np.empty(n)
+        gp = _dot(g_load, p)
+        for s in range(count - 1):
+            ta = taus[s]
+            tb = taus[s + 1]
+            ga = _contact_force(p, math.cos(ta), K, states[s, :n].copy(), g_load)
+            gb = _contact_force(p, math.cos(tb), K, states[s + 1, :n].copy(), g_load)
+            _matvec(K, states[s, n:].copy(), kxd)
+            dga = -math.sin(ta) * gp - _dot(g_load, kxd)
+            _matvec(K, states[s + 1, n:].copy(), kxd)
+            dgb = -math.sin(tb) * gp - _dot(g_load, kxd)
+            _hermite_extremes(ta, tb, ga, gb, dga, dgb, acc)
+        refine[0] = min(acc[2], acc[3])
+        refine[1] = max(acc[2], acc[3])
+        exact = sample_states(ctx, work, rec, refine)
+        force = max(abs(acc[4]), abs(acc[5]))
+        for k in range(2):
+            g = _contact_force(p, math.cos(refine[k]), K, exact[k, :n].copy(), g_load)
+            force = max(force, abs(g))
+    dout[2 * n + DESIGN_FORCE] = force
+    dout[2 * n + DESIGN_DISSIPATION] = beta * slip / period
+    return count
+
+
+@njit(cache=True)
+def orbit_designs(r, beta, scene, settings, out, final, samples):
+    """:func:`orbit_design` for every converged point of :func:`run_points`' output.
+
+    Returns ``(design, n_samples)``: ``design`` is ``(n_points, 2 n + 2)``, NaN
+    where the point has no steady state (regime code < 0).
+    """
+    n = scene[0].shape[0]
+    design = np.full((r.shape[0], 2 * n + 2), np.nan)
+    total = 0
+    for i in range(r.shape[0]):
+        if out[i, OUT_REGIME] < 0.0 or out[i, OUT_CONVERGED] == 0.0:
+            continue
+        period = max(1, int(out[i, OUT_PERIOD]))
+        total += orbit_design(r[i], beta[i], scene, settings, final[i], period, samples, design[i])
+    return design, total

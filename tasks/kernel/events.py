@@ -1,0 +1,385 @@
+"""Event location: the first zero of a phase's event function, and stick phases that never end.
+
+The event function ``F`` of a phase (:mod:`tasks.kernel.propagation`) is ``s y``
+while sliding with sign ``s`` (a stop when the contact velocity reaches 0) and
+``beta - |g|`` while stuck (unsticking when the contact force reaches the
+friction limit; Eqs. 11, 12, 79, 103). :func:`next_event` finds its *first*
+zero completely: every part of the phase is either proved free of zeros by a
+certificate built on bounds of ``|F'|`` and ``|F''|``
+(:func:`tasks.kernel.propagation.derivative_bounds`) or searched down to the
+event tolerance, so no stop, reversal or unsticking is skipped however briefly
+the function dips. :func:`never_unsticks` proves that a stick phase lasts for
+ever (the no-motion steady state, docs/theory.md 4.2).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from tasks.kernel.layout import (
+    ALPHA,
+    BETA,
+    COS_TAU0,
+    ETA0,
+    ETAD0,
+    EVALS,
+    KIND,
+    KIND_SLIP,
+    KIND_STICK,
+    LOAD_CONST,
+    LOAD_COS,
+    OBS0,
+    OBS_COS,
+    OMEGA,
+    SIGN,
+    SIN_TAU0,
+    WORK_CAP,
+)
+from tasks.kernel.propagation import derivative_bounds, evaluate, event_function
+
+
+@njit(cache=True)
+def _no_zero_between(fa, da, fb, db, h, curvature, slope=np.inf):
+    """Certificate that F > 0 on ``(a, a + h)`` from its values and slopes at both
+    ends, ``|F''| <= curvature`` and ``|F'| <= slope``: the lower bounds
+    ``fa + da u - c u^2 / 2`` and ``fa - slope u`` from the left end, and their
+    mirror images from the right end, are positive on intervals that together
+    cover the bracket. ``fa`` or ``fb`` may be 0 (a phase start at an event);
+    values below 0 (rounding at such a start) count as 0."""
+    fa = max(fa, 0.0)
+    fb = max(fb, 0.0)
+    if curvature <= 0.0:
+        return fa > 0.0 or fb > 0.0 or (da > 0.0 and db < 0.0)
+    ua = (da + math.sqrt(da * da + 2.0 * curvature * fa)) / curvature
+    wb = (-db + math.sqrt(db * db + 2.0 * curvature * fb)) / curvature
+    if slope > 0.0 and slope < np.inf:
+        ua = max(ua, fa / slope)
+        wb = max(wb, fb / slope)
+    return ua + wb >= h
+
+
+@njit(cache=True)
+def stick_force_bound(seg, sc):
+    """``|G0| + |H| + sum_k |alpha_k| A_free,k``: the largest ``|g|`` a stick phase
+    can ever reach (the bound of :func:`never_unsticks`; tight when the free
+    frequencies are incommensurate with the excitation and each other)."""
+    harmonic = sc[OBS_COS]
+    free_sum = 0.0
+    # sc[OBS0] is g at tau0; rebuild the constant part from the modal split.
+    const = sc[OBS0] - sc[OBS_COS] * sc[COS_TAU0]
+    for k in range(seg.shape[1]):
+        w = seg[OMEGA, k]
+        den = w * w - 1.0
+        if den == 0.0:
+            return np.inf
+        pk = seg[LOAD_COS, k] / den
+        static = seg[LOAD_CONST, k] / (w * w)
+        d = seg[ETA0, k] - static - pk * sc[COS_TAU0]
+        e = (seg[ETAD0, k] + pk * sc[SIN_TAU0]) / w
+        alpha = seg[ALPHA, k]
+        # g(tau0) contains alpha * eta0 = alpha * (static + P cos tau0 + d)
+        const -= alpha * (pk * sc[COS_TAU0] + d)
+        harmonic += alpha * pk
+        free_sum += abs(alpha) * math.hypot(d, e)
+    return abs(const) + abs(harmonic) + free_sum
+
+
+@njit(cache=True)
+def never_unsticks(seg, sc):
+    """Certificate that a stick phase lasts for ever (docs/theory.md 4.2, held contact).
+
+    While stuck, ``g = G0 + H cos(tau) + free modes``; if
+    ``|G0| + |H| + sum_k |alpha_k| A_free,k <= beta`` (:func:`stick_force_bound`)
+    then ``|g| <= beta`` at every future time, whatever the phases of the free modes.
+    """
+    total = stick_force_bound(seg, sc)
+    # |g| <= beta sticks (Eq. 3, sgn in [-1, 1]): the bound itself is no motion
+    # (Tables 1-3: beta >= bound); 1e-12 absorbs the rounding of the modal sums.
+    return math.isfinite(total) and total <= sc[BETA] * (1.0 + 1e-12)
+
+
+@njit(cache=True)
+def _solve_bracket(seg, sc, which, lo, hi, flo, fhi, tol, eta, etad):
+    """Illinois regula falsi on F (which=0) or F' (which=1) in a sign-changing bracket.
+
+    ``flo`` and ``fhi`` have opposite signs (``fhi`` may be 0). Returns
+    ``(lo, hi)`` with ``hi - lo <= tol``; ``hi`` is on the side of ``fhi``.
+    """
+    sign_lo = 1.0 if flo > 0.0 else -1.0
+    side = 0
+    width = hi - lo
+    for _ in range(200):
+        if hi - lo <= tol or fhi == 0.0:
+            break
+        t = (lo * fhi - hi * flo) / (fhi - flo)
+        if not (lo < t < hi):
+            t = 0.5 * (lo + hi)
+        f, df = event_function(seg, sc, t, eta, etad)
+        ft = f if which == 0 else df
+        if ft * sign_lo > 0.0:
+            lo = t
+            flo = ft
+            if side == 1:
+                fhi *= 0.5
+            side = 1
+        else:
+            hi = t
+            fhi = ft
+            if side == -1:
+                flo *= 0.5
+            side = -1
+        # guarantee progress: bisect when the bracket did not halve in two steps
+        new_width = hi - lo
+        if new_width > 0.5 * width:
+            t = 0.5 * (lo + hi)
+            f, df = event_function(seg, sc, t, eta, etad)
+            ft = f if which == 0 else df
+            if ft * sign_lo > 0.0:
+                lo = t
+                flo = ft
+            else:
+                hi = t
+                fhi = ft
+            side = 0
+        width = hi - lo
+    return lo, hi
+
+
+@njit(cache=True)
+def _observe(seg, sc, t, eta, etad):
+    """``(y, y')`` of the phase's observable at t, counting the work in ``sc[EVALS]``."""
+    sc[EVALS] += 1.0 + seg.shape[1]
+    return evaluate(seg, sc, t, eta, etad)
+
+
+@njit(cache=True)
+def _event_value(sc, y, dy):
+    """``(F, F')`` from the observable: ``s y`` sliding, ``beta - |y|`` stuck."""
+    if sc[KIND] == KIND_SLIP:
+        return sc[SIGN] * y, sc[SIGN] * dy
+    if y >= 0.0:
+        return sc[BETA] - y, -dy
+    return sc[BETA] + y, dy
+
+
+@njit(cache=True)
+def _clear(sc, ya, dya, yb, dyb, h, curvature, slope):
+    """Certificate that the event function stays positive on ``(a, a + h)``.
+
+    Sliding: on ``F = s y``. Stuck: ``F = beta - |y|`` is the smaller of the two
+    smooth branches ``beta - y`` and ``beta + y``; both must be certified (a
+    bound of one branch says nothing about the other once ``y`` changes sign
+    inside the bracket).
+    """
+    if sc[KIND] == KIND_SLIP:
+        s = sc[SIGN]
+        return _no_zero_between(s * ya, s * dya, s * yb, s * dyb, h, curvature, slope)
+    beta = sc[BETA]
+    return _no_zero_between(
+        beta - ya, -dya, beta - yb, -dyb, h, curvature, slope
+    ) and _no_zero_between(beta + ya, dya, beta + yb, dyb, h, curvature, slope)
+
+
+@njit(cache=True)
+def _out_of_work(sc):
+    return sc[EVALS] > sc[WORK_CAP]
+
+
+@njit(cache=True)
+def _dip(seg, sc, ta, tb, ya, dya, yb, dyb, curvature, slope, tol, skip_graze, floor, eta, etad):
+    """Search ``(ta, tb)`` (F > 0 at both ends) for the first point where F <= 0.
+
+    Bisects the parts of the bracket the certificate (:func:`_clear`) cannot
+    clear, left to right, so everything left of the returned bracket is
+    cleared. Returns ``(lo, hi, kind)``: kind 0 = no zero, 1 = a sign change
+    in ``(lo, hi]`` (F(lo) > 0 >= F(hi)), 2 = a touching zero at ``hi`` (a piece
+    of width ``tol`` that cannot be cleared while F stays positive at every
+    point tried: F comes within ``curvature tol^2 / 8`` of zero), 3 = the
+    point's work budget ran out. Stick phases (and ``skip_graze``) step over
+    touching zeros: ``|g| = beta`` still sticks. Values ``F > -floor`` count
+    as positive (``floor`` > 0 only next to a phase start, where F starts at a
+    zero known to rounding).
+    """
+    stack_a = np.empty(128)
+    stack_b = np.empty(128)
+    vals = np.empty((128, 4))
+    stack_a[0] = ta
+    stack_b[0] = tb
+    vals[0, 0] = ya
+    vals[0, 1] = dya
+    vals[0, 2] = yb
+    vals[0, 3] = dyb
+    top = 1
+    skip = skip_graze or sc[KIND] == KIND_STICK
+    while top > 0:
+        top -= 1
+        a = stack_a[top]
+        b = stack_b[top]
+        y_a = vals[top, 0]
+        d_a = vals[top, 1]
+        y_b = vals[top, 2]
+        d_b = vals[top, 3]
+        if _clear(sc, y_a, d_a, y_b, d_b, b - a, curvature, slope):
+            continue
+        m = 0.5 * (a + b)
+        if b - a <= tol or not (a < m < b) or top >= 126:
+            if skip:
+                continue
+            return a, m, 2
+        if _out_of_work(sc):
+            return a, b, 3
+        y_m, d_m = _observe(seg, sc, m, eta, etad)
+        f_m, _ = _event_value(sc, y_m, d_m)
+        if f_m <= -floor:
+            return a, m, 1
+        # right half first on the stack, so the left half is searched first
+        stack_a[top] = m
+        stack_b[top] = b
+        vals[top, 0] = y_m
+        vals[top, 1] = d_m
+        vals[top, 2] = y_b
+        vals[top, 3] = d_b
+        top += 1
+        stack_a[top] = a
+        stack_b[top] = m
+        vals[top, 0] = y_a
+        vals[top, 1] = d_a
+        vals[top, 2] = y_m
+        vals[top, 3] = d_m
+        top += 1
+    return ta, tb, 0
+
+
+@njit(cache=True)
+def _first_zero(seg, sc, lo, hi, curvature, slope, tol, eta, etad):
+    """The first zero of F in ``(lo, hi]`` (F(lo) > 0 >= F(hi), no zero before lo).
+
+    Solves the bracket (:func:`_solve_bracket`), then proves with :func:`_dip`
+    that F has no zero between ``lo`` and the root found; if it has, the search
+    moves to the earlier sign change (or touching zero). Returns ``(t, ok)``,
+    ``t`` on the far side of the first zero; ``ok`` is False if the work budget
+    ran out.
+    """
+    while True:
+        y_lo, dy_lo = _observe(seg, sc, lo, eta, etad)
+        f_lo, _ = _event_value(sc, y_lo, dy_lo)
+        y_hi, dy_hi = _observe(seg, sc, hi, eta, etad)
+        f_hi, _ = _event_value(sc, y_hi, dy_hi)
+        if not f_lo > 0.0:  # rounding at the bracket's end: take it as the zero
+            return lo, True
+        r_lo, r_hi = _solve_bracket(seg, sc, 0, lo, hi, f_lo, f_hi, tol, eta, etad)
+        if r_lo <= lo:
+            return r_hi, True
+        y_r, dy_r = _observe(seg, sc, r_lo, eta, etad)
+        a, b, kind = _dip(
+            seg, sc, lo, r_lo, y_lo, dy_lo, y_r, dy_r, curvature, slope, tol, False, 0.0, eta, etad
+        )
+        if kind == 0:
+            return r_hi, True
+        if kind == 2:
+            return b, True
+        if kind == 3:
+            return r_hi, False
+        lo = a
+        hi = b
+
+
+@njit(cache=True)
+def next_event(seg, sc, t_end, h, tol, eta, etad):
+    """First time ``t`` in ``(0, t_end]`` where the event function ``F`` reaches 0.
+
+    ``F > 0`` just after the phase start (it may start at 0, right after an
+    event). Complete: every part of ``(0, t_end]`` is either proved free of
+    zeros or searched down to ``tol``. The interval is scanned in brackets no
+    longer than ``h`` (a fraction of the shortest modal half-period), or longer
+    where ``F / max|F'|`` proves them free of zeros. A bracket that ends with
+    ``F <= 0`` is solved for its *first* zero (:func:`_first_zero`); one that
+    does not is cleared by the certificate of :func:`_clear` (bounds of
+    :func:`derivative_bounds` on ``|F'|`` and ``|F''|`` covering every term, both
+    branches of ``beta - |g|`` in stick phases) or else bisected where it
+    cannot be cleared (:func:`_dip`), which finds pairs of zeros and grazing
+    zeros however close together. The point's work budget (``sc[WORK_CAP]``)
+    bounds the search.
+
+    Returns ``(t, found)``; ``t`` is on the far side of the zero (F <= 0), or at
+    a touching zero. If the work budget ran out, ``(t, False)`` with
+    ``sc[EVALS] > sc[WORK_CAP]``.
+    """
+    y0, dy0 = _observe(seg, sc, 0.0, eta, etad)
+    f0, d0 = _event_value(sc, y0, dy0)
+    slope, curvature = derivative_bounds(seg, sc, t_end)
+    ta = 0.0
+    ya = y0
+    dya = dy0
+    if not f0 > 0.0:
+        # phase start at an event (F(0) = 0): step off it to a point where
+        # F > 0 (a zero closer than h / 64 to the start is taken as immediate).
+        # F(0) is 0 only to rounding: next to the start, values above -noise
+        # count as positive (else a tangential event repeats in zero time).
+        t1 = min(h / 64.0, t_end)
+        y1, dy1 = _observe(seg, sc, t1, eta, etad)
+        f1, _ = _event_value(sc, y1, dy1)
+        noise = 1e-12 * (abs(y0) + (sc[BETA] if sc[KIND] == KIND_STICK else 0.0) + slope * t1)
+        if not noise < np.inf:
+            noise = 0.0
+        if f1 > -noise:
+            # (0, t1) is cleared from F(0) = 0 and F'(0) > 0, or searched
+            lo, hi, kind = _dip(
+                seg, sc, 0.0, t1, y0, dy0, y1, dy1, curvature, slope, tol, True, noise, eta, etad
+            )
+            if kind == 3:
+                return t1, False
+            if kind == 1 and lo > 0.0:
+                return _first_zero(seg, sc, lo, hi, curvature, slope, tol, eta, etad)
+            if kind == 1:
+                t1 = hi
+                f1 = -np.inf
+        if not f1 > -noise:
+            tm = t1
+            for _ in range(60):
+                tm = 0.5 * tm
+                ym, dym = _observe(seg, sc, tm, eta, etad)
+                fm, _ = _event_value(sc, ym, dym)
+                if fm > 0.0:
+                    return _first_zero(seg, sc, tm, t1, curvature, slope, tol, eta, etad)
+            return tm, True
+        ta = t1
+        ya = y1
+        dya = dy1
+    fa, _ = _event_value(sc, ya, dya)
+    while ta < t_end:
+        if _out_of_work(sc):
+            return ta, False
+        step = h
+        certified = False
+        if slope < np.inf:
+            safe = fa / slope if slope > 0.0 else t_end - ta
+            if safe > step:
+                step = safe
+                certified = True
+        tb = min(ta + step, t_end)
+        if not tb > ta:  # the step no longer advances time: out of budget
+            sc[EVALS] = sc[WORK_CAP] + 1.0
+            return ta, False
+        yb, dyb = _observe(seg, sc, tb, eta, etad)
+        fb, _ = _event_value(sc, yb, dyb)
+        if fb <= 0.0:
+            return _first_zero(seg, sc, ta, tb, curvature, slope, tol, eta, etad)
+        if not certified:
+            lo, hi, kind = _dip(
+                seg, sc, ta, tb, ya, dya, yb, dyb, curvature, slope, tol, False, 0.0, eta, etad
+            )
+            if kind == 2:  # the contact velocity touches zero: a stop if it can stick
+                return hi, True
+            if kind == 1:
+                return _first_zero(seg, sc, lo, hi, curvature, slope, tol, eta, etad)
+            if kind == 3:
+                return tb, False
+        ta = tb
+        ya = yb
+        dya = dyb
+        fa = fb
+    return t_end, False

@@ -1,0 +1,74 @@
+"""Layouts of the arrays and tuples the kernel's functions pass around.
+
+numba compiles module-level integers as constants, so these names cost nothing
+at run time: they only name the rows, entries and columns below.
+"""
+
+from __future__ import annotations
+
+import math
+
+#: One excitation period (the excitation is ``cos(tau)``).
+TWO_PI = 2.0 * math.pi
+
+# Rows of the per-mode segment array ``seg`` (shape (N_ROWS, m)), the data of one
+# phase in its modal coordinates (tasks.kernel.propagation, Eq. (1)).
+OMEGA, ETA0, ETAD0, LOAD_COS, LOAD_CONST, ALPHA, DELTA = range(7)
+N_ROWS = 7
+# Entries of the scalar segment array ``sc``.
+TAU0, COS_TAU0, SIN_TAU0, OBS_COS, OBS0, KIND, SIGN, BETA, EVALS, WORK_CAP = range(10)
+N_SCALARS = 10
+KIND_SLIP = 0.0
+KIND_STICK = 1.0
+
+# Entries of the per-point context tuple ``ctx`` (built by tasks.kernel.context._context).
+CTX_SEG_SLIP = 0
+CTX_SEG_STICK = 1
+CTX_SC = 2
+CTX_BETA = 3
+CTX_P = 4
+CTX_K = 5
+CTX_B = 6
+CTX_W = 7
+CTX_T = 8
+CTX_PHI = 9
+CTX_PHI_T_GAMMA = 10
+CTX_PHI_S = 11
+CTX_PHI_S_T_GAMMA_S = 12
+CTX_PROJ = 13
+CTX_F_R2 = 14
+CTX_DSTAT_R2 = 15
+CTX_G_LOAD = 16
+CTX_G_COS = 17
+CTX_G_D0 = 18
+CTX_H_SLIP = 19
+CTX_H_STICK = 20
+CTX_TOL = 21
+CTX_STICK_MIN = 22
+CTX_MAX_EVENTS = 23
+CTX_MAX_WORK = 24
+
+# Entries of the per-cycle statistics array.
+(
+    ST_STOPS,
+    ST_REVERSALS,
+    ST_STUCK_TIME,
+    ST_DMIN,
+    ST_DMAX,
+    ST_FOREVER,
+    ST_EVENTS,
+    ST_STATUS,
+    ST_MID,
+    ST_LONGEST,
+) = range(10)
+N_STATS = 10
+STATUS_OK = 0.0
+
+# Event records (tasks.trajectory): kinds and columns of the record buffer.
+EV_SECTION, EV_STOP, EV_REVERSAL, EV_UNSTICK, EV_GRAZE, EV_END = 0.0, 1.0, 2.0, 3.0, 4.0, 5.0
+REC_TAU, REC_KIND, REC_MODE, REC_G, REC_X = range(5)
+
+# Fields of the per-point output array (see tasks.result.FIELDS).
+OUT_REGIME, OUT_CONVERGED, OUT_CYCLES, OUT_STOPS, OUT_AMP, OUT_STICK, OUT_PERIOD, OUT_IC = range(8)
+OUT_ASYMPTOTIC = 8
+N_OUT = 9

@@ -1,0 +1,206 @@
+"""The orbit invariant: a converged period re-checked densely, independently of the event search.
+
+Through each stick phase ``|g| <= beta`` and through each slip phase the
+contact velocity keeps its sign, sampled in closed form between the recorded
+events: a missed unsticking or reversal shows as a violation, and the point is
+flagged (never reported).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from tasks.kernel.context import _context
+from tasks.kernel.cycle import run_cycle
+from tasks.kernel.layout import (
+    BETA,
+    CTX_B,
+    CTX_BETA,
+    CTX_DSTAT_R2,
+    CTX_F_R2,
+    CTX_G_COS,
+    CTX_G_D0,
+    CTX_H_SLIP,
+    CTX_H_STICK,
+    CTX_PHI_S_T_GAMMA_S,
+    CTX_PHI_T_GAMMA,
+    CTX_PROJ,
+    CTX_SC,
+    CTX_SEG_SLIP,
+    CTX_SEG_STICK,
+    CTX_TOL,
+    CTX_W,
+    EV_SECTION,
+    EVALS,
+    KIND,
+    KIND_STICK,
+    N_STATS,
+    OUT_CONVERGED,
+    OUT_CYCLES,
+    OUT_IC,
+    OUT_PERIOD,
+    OUT_REGIME,
+    REC_KIND,
+    REC_MODE,
+    REC_TAU,
+    REC_X,
+    SIGN,
+    ST_STATUS,
+    STATUS_OK,
+    TWO_PI,
+    WORK_CAP,
+)
+from tasks.kernel.outcome import _undetermined
+from tasks.kernel.phases import _dot, _start_slip, _start_stick
+from tasks.kernel.propagation import derivative_bounds, evaluate
+from tasks.regimes import NO_MOTION, NUMERICAL_FAILURE, WORK_LIMIT
+
+# Orbit invariant (:func:`orbit_holds`): stated tolerance of ``|g| <= beta`` in
+# stick phases, relative to beta, and samples per shortest modal half-period.
+ORBIT_RTOL = 1e-9
+ORBIT_SAMPLES = 8.0
+ORBIT_MAX_SAMPLES = 4096.0
+
+
+@njit(cache=True)
+def _phase_holds(seg, sc, t_len, h, tol):
+    """The invariant through one phase of length ``t_len`` (start already set in ``seg, sc``).
+
+    Samples the observable at spacing at most ``h / ORBIT_SAMPLES`` (at most
+    ``ORBIT_MAX_SAMPLES`` per phase) strictly inside the phase. Stuck:
+    ``|g| <= beta (1 + ORBIT_RTOL) + tol max|g'|`` (the second term is what an
+    event located to ``tol`` can leave). Sliding: the contact velocity keeps the
+    phase's sign, ``s v >= -1e-9 max|v|``. Returns 1 (holds), 0 (violated) or -1
+    (the work budget ran out first).
+    """
+    m = seg.shape[1]
+    eta = np.empty(m)
+    etad = np.empty(m)
+    n_samples = int(min(max(2.0, ORBIT_SAMPLES * t_len / h), ORBIT_MAX_SAMPLES))
+    if sc[EVALS] + n_samples * (1.0 + m) > sc[WORK_CAP]:
+        return -1
+    dt = t_len / (n_samples + 1)
+    if sc[KIND] == KIND_STICK:
+        slope, _ = derivative_bounds(seg, sc, t_len)
+        limit = sc[BETA] * (1.0 + ORBIT_RTOL) + tol * slope
+        for i in range(1, n_samples + 1):
+            y, _ = evaluate(seg, sc, i * dt, eta, etad)
+            if not abs(y) <= limit:
+                return 0
+        sc[EVALS] += n_samples * (1.0 + m)
+        return 1
+    s = sc[SIGN]
+    vmax = 0.0
+    vmin = 0.0
+    for i in range(1, n_samples + 1):
+        y, _ = evaluate(seg, sc, i * dt, eta, etad)
+        v = s * y
+        vmax = max(vmax, abs(v))
+        vmin = min(vmin, v)
+    sc[EVALS] += n_samples * (1.0 + m)
+    return 1 if vmin >= -1e-9 * vmax else 0
+
+
+@njit(cache=True)
+def orbit_holds(X, mode, theta, period, ctx, work):
+    """Orbit invariant: the converged period from the section state is a solution.
+
+    Re-simulates ``period`` cycles from ``(X, mode)`` at ``tau = theta`` with
+    every event recorded, then checks every phase densely in closed form
+    (:func:`_phase_holds`): through each stick phase ``|g| <= beta`` (to
+    ``ORBIT_RTOL``), through each slip phase the contact velocity keeps its
+    sign. Independent of the event search it checks: a missed unsticking or
+    reversal shows as a violation. Costs about one period more per point.
+    Returns 1 (holds), 0 (violated) or -1 (the work budget ran out first).
+    """
+    n = X.shape[0] // 2
+    beta = ctx[CTX_BETA]
+    h_slip = ctx[CTX_H_SLIP]
+    h_stick = ctx[CTX_H_STICK]
+    tol = ctx[CTX_TOL]
+    sc = ctx[CTX_SC]
+    rows = 64
+    stats = np.zeros(N_STATS)
+    while True:
+        rec = np.zeros((rows, REC_X + 2 * n))
+        rec_n = np.zeros(1, dtype=np.int64)
+        x = X[:n].copy()
+        xd = X[n:].copy()
+        m = mode
+        stick_start = theta
+        for k in range(period):
+            t0 = theta + TWO_PI * k
+            m, stick_start = run_cycle(
+                x, xd, m, stick_start, stats, ctx, work, rec, rec_n, t0, t0 + TWO_PI
+            )
+            if stats[ST_STATUS] != STATUS_OK:
+                return -1 if stats[ST_STATUS] == WORK_LIMIT else 0
+        if rec_n[0] < rows:
+            break
+        rows *= 4
+    eta, etad, eta_s, etad_s, q = work
+    x = np.empty(n)
+    xd = np.empty(n)
+    for j in range(rec_n[0] - 1):
+        t_len = rec[j + 1, REC_TAU] - rec[j, REC_TAU]
+        if not t_len > 0.0:
+            continue
+        tau0 = rec[j, REC_TAU]
+        for i in range(n):
+            x[i] = rec[j, REC_X + i]
+            xd[i] = rec[j, REC_X + n + i]
+        phase = int(rec[j, REC_MODE])
+        if phase == 0:
+            seg = ctx[CTX_SEG_STICK]
+            _start_stick(
+                seg,
+                sc,
+                x,
+                xd,
+                tau0,
+                beta,
+                ctx[CTX_B],
+                ctx[CTX_W],
+                ctx[CTX_PROJ],
+                ctx[CTX_PHI_S_T_GAMMA_S],
+                ctx[CTX_DSTAT_R2],
+                ctx[CTX_G_COS],
+                ctx[CTX_G_D0],
+                q,
+            )
+            ok = _phase_holds(seg, sc, t_len, h_stick, tol)
+        else:
+            seg = ctx[CTX_SEG_SLIP]
+            # the contact velocity at a section start; 0 at an event, as in run_cycle
+            v0 = _dot(ctx[CTX_B], xd) if rec[j, REC_KIND] == EV_SECTION else 0.0
+            _start_slip(
+                seg, sc, x, xd, tau0, float(phase), v0, beta, ctx[CTX_F_R2], ctx[CTX_PHI_T_GAMMA]
+            )
+            ok = _phase_holds(seg, sc, t_len, h_slip, tol)
+        if ok != 1:
+            return ok
+    return 1
+
+
+@njit(cache=True)
+def _check_orbit(r, beta, scene, settings, out, final):
+    """Flag a converged point whose orbit fails :func:`orbit_holds` (never report it).
+
+    The point becomes ``NUMERICAL_FAILURE`` (an event the search could not
+    locate), or ``WORK_LIMIT`` if the check ran out of budget (it has a budget
+    of its own, ``max_work``). No-motion points are certified by :func:`never_unsticks` and
+    continuous points at beta = 0 are linear: neither is re-checked.
+    """
+    if out[OUT_CONVERGED] != 1.0 or out[OUT_REGIME] == NO_MOTION or beta == 0.0:
+        return
+    ctx, work, _, _, _ = _context(r, beta, scene, settings)
+    n = (final.shape[0] - 2) // 2
+    X = final[: 2 * n].copy()
+    mode = int(final[2 * n])
+    theta = final[2 * n + 1]
+    holds = orbit_holds(X, mode, theta, int(out[OUT_PERIOD]), ctx, work)
+    if holds == 0:
+        _undetermined(out, NUMERICAL_FAILURE, out[OUT_CYCLES], out[OUT_IC])
+    elif holds < 0:
+        _undetermined(out, WORK_LIMIT, out[OUT_CYCLES], out[OUT_IC])

@@ -1,0 +1,364 @@
+"""Classification of one (r, beta) point, and of many: the steady-state search.
+
+Steady state is detected on the Poincare section ``tau = theta + 2 pi n`` (the
+excitation has period 2 pi): the section state ``X = (x, x')`` repeating to a
+relative tolerance (period 1 or 2). Slow continuous transients are settled by
+Newton's method on the Poincare map (:mod:`tasks.kernel.shooting`). A stick
+phase that provably never ends (:func:`tasks.kernel.events.never_unsticks`) is
+the no-motion steady state; slips below the creep threshold are no motion
+(:mod:`tasks.kernel.creep`). Every converged orbit is re-checked by the orbit
+invariant (:mod:`tasks.kernel.orbit`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from tasks.kernel.context import _context
+from tasks.kernel.creep import _asymptotic_no_motion, _creep_limit, creep_settled, creep_threshold
+from tasks.kernel.cycle import _advance, _cycle, _max_abs, _max_abs_diff
+from tasks.kernel.layout import (
+    CTX_BETA,
+    CTX_F_R2,
+    CTX_K,
+    CTX_P,
+    CTX_PHI_S,
+    CTX_SEG_SLIP,
+    CTX_SEG_STICK,
+    CTX_T,
+    DELTA,
+    LOAD_COS,
+    N_OUT,
+    N_STATS,
+    OMEGA,
+    OUT_AMP,
+    OUT_ASYMPTOTIC,
+    OUT_CONVERGED,
+    OUT_CYCLES,
+    OUT_IC,
+    OUT_PERIOD,
+    OUT_REGIME,
+    OUT_STICK,
+    OUT_STOPS,
+    ST_DMAX,
+    ST_DMIN,
+    ST_EVENTS,
+    ST_FOREVER,
+    ST_LONGEST,
+    ST_MID,
+    ST_REVERSALS,
+    ST_STATUS,
+    ST_STOPS,
+    ST_STUCK_TIME,
+    STATUS_OK,
+    TWO_PI,
+)
+from tasks.kernel.orbit import _check_orbit
+from tasks.kernel.outcome import _finish, _no_motion_by_margin, _undetermined
+from tasks.kernel.shooting import SETTLE_PHASES, _same_chart, _shoot, settle_at_phases
+from tasks.kernel.starts import _held_response, held_margin, start_phase
+from tasks.regimes import (
+    CONTINUOUS,
+    CREEP_SLIP_RTOL,
+    CREEP_WINDOW,
+    IC_HELD,
+    NOT_CONVERGED,
+    SLIP_RTOL,
+    UNBOUNDED,
+)
+
+# held_margin must exceed this fraction of beta to decide no motion (rounding of g_h).
+HELD_MARGIN_RTOL = 1e-9
+
+
+@njit(cache=True)
+def _linear_amplitude(seg_slip):
+    """Amplitude of ``b . x`` on the forced response of the sliding system without
+    friction: ``|b . (K - M)^-1 p|`` (inf at a resonance)."""
+    amp = 0.0
+    for k in range(seg_slip.shape[1]):
+        den = seg_slip[OMEGA, k] ** 2 - 1.0
+        if den == 0.0:
+            return np.inf
+        amp += seg_slip[DELTA, k] * seg_slip[LOAD_COS, k] / den
+    return abs(amp)
+
+
+@njit(cache=True)
+def _resonant_growth(seg_slip, f_r2, beta):
+    """Den Hartog's resonance rule, extended mode by mode (docs/theory.md 3).
+
+    At an exact resonance of the sliding system (``Omega_k = 1``) the load feeds
+    mode k with ``pi |a_k| A`` per cycle while the contact dissipates at most
+    ``4 beta |phi_k . b| A / r^2``; the amplitude A grows without bound when
+    ``beta < pi |a_k| / (4 |f_k|)`` (SDOF: beta < pi/4). Used only where the
+    rate of growth can be too slow to see in simulation.
+    """
+    for k in range(seg_slip.shape[1]):
+        w = seg_slip[OMEGA, k]
+        a = seg_slip[LOAD_COS, k]
+        if abs(w * w - 1.0) <= 1e-12 and a != 0.0:
+            if 4.0 * beta * abs(f_r2[k]) < math.pi * abs(a):
+                return True
+    return False
+
+
+@njit(cache=True)
+def simulate_point(r, beta, scene, settings, out, final):
+    """Classify one (r, beta) point; writes the fields into ``out`` and the last
+    section state and phase ``(x, x', mode)`` into ``final``."""
+    (
+        _event_tol,
+        _step_fraction,
+        section_rtol,
+        max_cycles,
+        min_cycles,
+        shooting,
+        shooting_after,
+        _max_events,
+        growth_factor,
+        _initial_condition,
+        _max_work,
+        _seed,
+    ) = settings
+    ctx, work, X, mode, ic_used = _context(r, beta, scene, settings)
+    out[OUT_ASYMPTOTIC] = 0.0
+    slip_tol = creep_threshold(ctx, beta)
+    small_run = 0
+    quiet_run = 0
+    n = X.shape[0] // 2
+    theta = 0.0  # phase of the Poincare section
+    final[: 2 * n] = X
+    final[2 * n] = mode
+    final[2 * n + 1] = theta
+    if beta == 0.0:  # undamped linear system: continuous by definition
+        amp = _linear_amplitude(ctx[CTX_SEG_SLIP])
+        if not math.isfinite(amp):  # ... unless exactly at a resonance
+            _undetermined(out, UNBOUNDED, 0, ic_used)
+            return
+        out[OUT_REGIME] = CONTINUOUS
+        out[OUT_CONVERGED] = 1.0
+        out[OUT_CYCLES] = 0.0
+        out[OUT_STOPS] = 0.0
+        out[OUT_AMP] = amp
+        out[OUT_STICK] = 0.0
+        out[OUT_PERIOD] = 1.0
+        out[OUT_IC] = ic_used
+        return
+    if ic_used != IC_HELD and held_margin(ctx) > HELD_MARGIN_RTOL * beta:
+        # every start reaches no motion (held_margin): the limit is the held
+        # steady state plus a free vibration of the held system that the
+        # contact never feels enough to slide
+        X_held, _ = _held_response(ctx[CTX_SEG_STICK], ctx[CTX_PHI_S], ctx[CTX_T], n)
+        final[: 2 * n] = X_held
+        final[2 * n] = 0
+        _no_motion_by_margin(out, ic_used)
+        return
+    if _resonant_growth(ctx[CTX_SEG_SLIP], ctx[CTX_F_R2], beta):
+        _undetermined(out, UNBOUNDED, 0, ic_used)
+        return
+    stats = np.zeros(N_STATS)
+    stats_prev = np.zeros(N_STATS)
+    X_prev = X.copy()
+    mode_prev = mode
+    mode_prev2 = mode
+    X_prev2 = X.copy()
+    diff_prev = np.inf
+    # scale of the motion: the static response to the load amplitude, or more
+    ref = max(_max_abs(X), _max_abs(np.linalg.solve(ctx[CTX_K], ctx[CTX_P])), 1e-300)
+    stick_start = 0.0
+    cycles = 0
+    next_shot = shooting_after
+    shots_failed = 0
+    unit_ratio_run = 0
+    run_start_scale = 0.0
+    chart_flips = 0
+    moves = 0
+    while cycles < max_cycles:
+        X_new, mode_new, stick_start = _cycle(X, mode, stick_start, stats, ctx, work, theta)
+        cycles += 1
+        final[: 2 * n] = X_new
+        final[2 * n] = mode_new
+        final[2 * n + 1] = theta
+        status = stats[ST_STATUS]
+        if status != STATUS_OK:
+            _undetermined(out, status, cycles, ic_used)
+            return
+        if stats[ST_FOREVER] > 0.0:  # stuck for ever: no motion
+            final[: 2 * n] = X
+            final[2 * n] = mode
+            stats[ST_EVENTS] = 0.0
+            stats[ST_STUCK_TIME] = TWO_PI
+            stats[ST_STOPS] = 0.0
+            _finish(out, stats, stats_prev, 1, cycles, ic_used)
+            return
+        X_prev2 = X_prev
+        X_prev = X
+        mode_prev2 = mode_prev
+        mode_prev = mode
+        X = X_new
+        mode = mode_new
+        # creep towards the stuck set: small slips for a window of cycles, most
+        # cycles without any event (so no orbit of period 1 or 2), and a contact
+        # force that can exceed beta only marginally
+        if 0.5 * (stats[ST_DMAX] - stats[ST_DMIN]) < CREEP_SLIP_RTOL / SLIP_RTOL * slip_tol:
+            small_run += 1
+            quiet_run += 1 if stats[ST_EVENTS] == 0.0 else 0
+        else:
+            small_run = 0
+            quiet_run = 0
+        if (
+            small_run >= CREEP_WINDOW
+            and 2 * quiet_run > small_run
+            and mode == 0
+            and creep_settled(X, ctx, theta)
+        ):
+            _asymptotic_no_motion(out, stats, cycles, ic_used)
+            return
+        scale = max(_max_abs(X), 1e-300)
+        if cycles <= 2:
+            ref = max(ref, scale)
+        elif scale > growth_factor * ref:
+            _undetermined(out, UNBOUNDED, cycles, ic_used)
+            return
+        diff = _max_abs_diff(X, X_prev)
+        # the section repeats (to rtol of the motion, or of the static response
+        # when the motion is far smaller) and so does the event pattern
+        if (
+            cycles >= min_cycles
+            and _same_chart(mode, mode_prev)
+            and stats[ST_STOPS] == stats_prev[ST_STOPS]
+            and stats[ST_REVERSALS] == stats_prev[ST_REVERSALS]
+        ):
+            rho = diff / diff_prev if diff_prev > 0.0 else 0.0
+            err = diff / (1.0 - min(rho, 0.999))
+            if err <= section_rtol * max(scale, ref) or diff <= 1e-13 * scale:
+                final[: 2 * n] = X_prev
+                final[2 * n] = mode_prev
+                _finish(out, stats, stats_prev, 1, cycles, ic_used)
+                _creep_limit(out, slip_tol)
+                return
+        chart_flips = chart_flips + 1 if not _same_chart(mode, mode_prev) else 0
+        if cycles >= min_cycles + 1 and _same_chart(mode, mode_prev2):
+            diff2 = _max_abs_diff(X, X_prev2)
+            tol2 = section_rtol * max(scale, ref)
+            if diff2 <= tol2 and diff > 10.0 * tol2:
+                final[: 2 * n] = X_prev2
+                final[2 * n] = mode_prev2
+                _finish(out, stats, stats_prev, 2, cycles, ic_used)
+                _creep_limit(out, slip_tol)
+                return
+        # linear growth (resonance without enough friction): increments repeat
+        # (Coulomb-damped decay also repeats its increments: growth must be seen)
+        if 0.0 < diff_prev < np.inf and diff > 0.0 and abs(diff / diff_prev - 1.0) < 1e-6:
+            if unit_ratio_run == 0:
+                run_start_scale = scale
+            unit_ratio_run += 1
+        else:
+            unit_ratio_run = 0
+        if (
+            unit_ratio_run >= 10
+            and scale > 10.0 * ref
+            and scale - run_start_scale >= 5.0 * diff
+            and (shots_failed > 0 or not shooting)
+        ):
+            _undetermined(out, UNBOUNDED, cycles, ic_used)
+            return
+        for i in range(N_STATS):
+            stats_prev[i] = stats[i]
+        diff_prev = diff
+        shoot_now = shooting and cycles >= next_shot
+        if (shoot_now or chart_flips >= 2) and moves < 8:
+            # The section falls near an event (the phase there flips between
+            # cycles): move it to the middle of the longest phase of the last
+            # period, where the Poincare map is smooth, and restart the history.
+            target = stats[ST_MID]
+            if abs(target - theta) > 1e-6 and stats[ST_LONGEST] > 0.0:
+                X, mode, stick_start = _advance(
+                    X, mode, stick_start, stats_prev, ctx, work, theta, target
+                )
+                if stats_prev[ST_STATUS] != STATUS_OK:
+                    _undetermined(out, stats_prev[ST_STATUS], cycles, ic_used)
+                    return
+                shift = TWO_PI * math.floor(target / TWO_PI)
+                theta = target - shift
+                stick_start -= shift
+                moves += 1
+                X_prev = X.copy()
+                X_prev2 = X.copy()
+                mode_prev = mode
+                mode_prev2 = mode
+                diff_prev = np.inf
+                stats_prev[ST_STOPS] = -1.0  # no period at this section yet
+                chart_flips = 0
+                unit_ratio_run = 0
+        if shoot_now:
+            next_shot = 2 * next_shot
+            ok, Xs, used = _shoot(X, mode, stats, ctx, work, section_rtol, ref, 20, theta)
+            cycles += used
+            if ok:
+                final[: 2 * n] = Xs
+                final[2 * n] = start_phase(Xs, ctx[CTX_BETA], ctx, theta) if mode != 0 else 0
+                final[2 * n + 1] = theta
+                _finish(out, stats, stats_prev, 1, cycles, ic_used)
+                _creep_limit(out, slip_tol)
+                return
+            shots_failed += 1
+            if shots_failed in (2, 4, 6):  # a slow point: full Newton from here
+                ok, Xs, mode_s, theta_s, used = settle_at_phases(
+                    X,
+                    mode,
+                    stick_start,
+                    stats,
+                    ctx,
+                    work,
+                    section_rtol,
+                    ref,
+                    theta,
+                    1,
+                )
+                cycles += used
+                if ok:
+                    theta = theta_s
+                    final[: 2 * n] = Xs
+                    final[2 * n] = mode_s
+                    final[2 * n + 1] = theta
+                    _finish(out, stats, stats_prev, 1, cycles, ic_used)
+                    _creep_limit(out, slip_tol)
+                    return
+    if shooting:
+        # last resort before giving up: Newton from four sections of the period
+        # (a map cut by an event at one section can be smooth at another); it
+        # runs only for points the budget could not settle, so they may end with
+        # up to SETTLE_PHASES * SETTLE_CYCLES periods beyond max_cycles
+        ok, Xs, mode_s, theta_s, used = settle_at_phases(
+            X, mode, stick_start, stats, ctx, work, section_rtol, ref, theta, SETTLE_PHASES
+        )
+        cycles += used
+        if ok:
+            final[: 2 * n] = Xs
+            final[2 * n] = mode_s
+            final[2 * n + 1] = theta_s
+            _finish(out, stats, stats_prev, 1, cycles, ic_used)
+            _creep_limit(out, slip_tol)
+            return
+    _undetermined(out, NOT_CONVERGED, cycles, ic_used)
+
+
+@njit(cache=True)
+def run_points(r, beta, scene, settings):
+    """Classify every point ``(r[i], beta[i])``.
+
+    Returns ``(out, final)``: ``out`` is ``(n_points, N_OUT)`` (columns
+    ``OUT_*``), ``final`` the last section state and phase of each point.
+    """
+    n = scene[0].shape[0]
+    out = np.empty((r.shape[0], N_OUT))
+    final = np.empty((r.shape[0], 2 * n + 2))
+    for i in range(r.shape[0]):
+        simulate_point(r[i], beta[i], scene, settings, out[i], final[i])
+        _check_orbit(r[i], beta[i], scene, settings, out[i], final[i])
+    return out, final

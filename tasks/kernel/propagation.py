@@ -1,0 +1,196 @@
+"""Closed-form propagation of a linear phase (slip or stick) and bounds of its observable.
+
+Between two events every configuration is linear with constant plus harmonic
+forcing (docs/theory.md section 2). In the modal coordinates of the moving system
+each mode obeys
+
+    eta'' + Omega^2 eta = a cos(tau) + c,                                 (1)
+
+whose solution from ``(eta0, eta0')`` at ``tau0`` is, with ``t = tau - tau0``,
+
+    eta(t) = eta0 cos(Omega t) + eta0' sin(Omega t)/Omega + c (1 - cos(Omega t))/Omega^2
+             + a [cos(tau0) C(t) - sin(tau0) S(t)],
+
+``C`` and ``S`` being the zero-start responses to ``cos t`` and ``sin t``:
+
+    C(t) = (cos t - cos Omega t)/(Omega^2 - 1),  S(t) = (sin t - sin(Omega t)/Omega)/(Omega^2 - 1).
+
+They are evaluated in product form (``cos t - cos Omega t = 2 sin(pt/2) sin(et/2)``
+with ``p = Omega + 1``, ``e = Omega - 1``), so they stay exact at and near
+resonance (Omega = 1, secular growth) and keep full relative accuracy for small
+t. Everything here works on *increments* from the phase start, so an event
+function that is zero at the start of a phase (the slip velocity after a stop)
+keeps its sign right even a few 1e-12 after it.
+
+An *observable* of a phase is ``y = A cos(tau) + y0 + sum_k alpha_k eta_k + delta_k eta_k'``
+(slip: the contact velocity; stick: the contact force ``g``). The *event
+function* is ``F = s y`` while sliding with sign s (a stop when F reaches 0) or
+``F = beta - |y|`` while stuck (unsticking when F reaches 0). A phase is the
+pair of arrays ``seg`` (per mode) and ``sc`` (scalars) of
+:mod:`tasks.kernel.layout`, filled by :mod:`tasks.kernel.phases`.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from tasks.kernel.layout import (
+    ALPHA,
+    BETA,
+    COS_TAU0,
+    DELTA,
+    ETA0,
+    ETAD0,
+    EVALS,
+    KIND,
+    KIND_SLIP,
+    LOAD_CONST,
+    LOAD_COS,
+    OBS0,
+    OBS_COS,
+    OMEGA,
+    SIGN,
+    SIN_TAU0,
+)
+
+
+@njit(cache=True)
+def sin_over(e: float, u: float) -> float:
+    """``sin(e u) / e``, exact as e -> 0 (limit u)."""
+    x = e * u
+    if abs(x) < 1e-3:
+        x2 = x * x
+        return u * (1.0 - x2 / 6.0 * (1.0 - x2 / 20.0 * (1.0 - x2 / 42.0)))
+    return math.sin(x) / e
+
+
+@njit(cache=True)
+def evaluate(seg, sc, t, eta, etad):
+    """State and observable of a phase at time ``t`` after its start.
+
+    Writes the modal displacements and velocities into ``eta`` and ``etad`` and
+    returns ``(y, y')``, the observable and its derivative.
+    """
+    m = seg.shape[1]
+    h = 0.5 * t
+    sh = math.sin(h)
+    ch = math.cos(h)
+    sint = 2.0 * sh * ch
+    ct0 = sc[COS_TAU0]
+    st0 = sc[SIN_TAU0]
+    ctau = ct0 * (1.0 - 2.0 * sh * sh) - st0 * sint
+    stau = st0 * (1.0 - 2.0 * sh * sh) + ct0 * sint
+    amp = sc[OBS_COS]
+    # A (cos tau - cos tau0) = -2 A sin(tau0 + t/2) sin(t/2)
+    y = sc[OBS0] - 2.0 * amp * (st0 * ch + ct0 * sh) * sh
+    dy = -amp * stau
+    for k in range(m):
+        w = seg[OMEGA, k]
+        hw = w * h
+        s1 = math.sin(hw)
+        c1 = math.cos(hw)
+        sin_wt = 2.0 * s1 * c1
+        one_m_cos = 2.0 * s1 * s1
+        sdw = s1 / w
+        p = w + 1.0
+        e = w - 1.0
+        sp = s1 * ch + c1 * sh
+        cp = c1 * ch - s1 * sh
+        sde = sin_over(e, h)
+        cc = 2.0 * sp * sde / p
+        cd = (sin_wt + 2.0 * cp * sde) / p
+        if abs(e) < 0.5:
+            ss = (sint - 2.0 * cp * sde) / (w * p)
+        else:
+            ss = (sint - 2.0 * sdw * c1) / (w * w - 1.0)
+        e0 = seg[ETA0, k]
+        v0 = seg[ETAD0, k]
+        a = seg[LOAD_COS, k]
+        c = seg[LOAD_CONST, k]
+        d_eta = (
+            -e0 * one_m_cos + v0 * 2.0 * sdw * c1 + c * 2.0 * sdw * sdw + a * (ct0 * cc - st0 * ss)
+        )
+        d_etad = -e0 * w * sin_wt - v0 * one_m_cos + c * 2.0 * sdw * c1 + a * (ct0 * cd - st0 * cc)
+        ek = e0 + d_eta
+        vk = v0 + d_etad
+        eta[k] = ek
+        etad[k] = vk
+        y += seg[ALPHA, k] * d_eta + seg[DELTA, k] * d_etad
+        dy += seg[ALPHA, k] * vk + seg[DELTA, k] * (-w * w * ek + a * ctau + c)
+    return y, dy
+
+
+@njit(cache=True)
+def event_function(seg, sc, t, eta, etad):
+    """``(F, F')`` at t: ``s y`` while sliding, ``beta - |y|`` while stuck.
+
+    Counts the work in ``sc[EVALS]``, in mode evaluations (the budget of a point)."""
+    sc[EVALS] += 1.0 + seg.shape[1]
+    y, dy = evaluate(seg, sc, t, eta, etad)
+    if sc[KIND] == KIND_SLIP:
+        return sc[SIGN] * y, sc[SIGN] * dy
+    if y >= 0.0:
+        return sc[BETA] - y, -dy
+    return sc[BETA] + y, dy
+
+
+@njit(cache=True)
+def derivative_bounds(seg, sc, t_end):
+    """Upper bounds of ``|y'|`` and ``|y''|`` over ``[0, t_end]`` of a phase.
+
+    ``y`` is the observable of the phase, so the bounds hold for ``|F'|`` and
+    ``|F''|`` of both branches ``beta - y`` and ``beta + y`` of a stick phase.
+    Every term is covered: the observable's own harmonic ``A cos(tau)`` and,
+    mode by mode, the smaller of two bounds of ``|eta^(k)|`` (k = 1, 2, 3):
+
+    * the modal split (module docstring, Eq. (1)): free oscillation of amplitude
+      ``A_free`` about the static part ``c / Omega^2`` plus the harmonic particular
+      part ``P = a / (Omega^2 - 1)``: ``Omega^k A_free + |P|``;
+    * Duhamel's integral (valid at and near resonance, where the first bound
+      grows without limit): free oscillation of amplitude
+      ``A0 = |(eta0 - c / Omega^2, eta0' / Omega)|`` plus the zero-start forced
+      response ``f`` of ``a cos(tau)``, with ``|f'| <= |a| t``,
+      ``|f''| <= |a| (1 + Omega t)``, ``|f'''| <= |a| (1 + Omega^2 t)``:
+      ``Omega^k A0 + (those)`` at ``t = t_end``.
+
+    Both are multiplied by ``1 + 1e-9`` (a safety margin far above the rounding
+    of the sums). Returns ``inf`` only for non-finite data.
+    """
+    harmonic = abs(sc[OBS_COS])
+    d1 = harmonic
+    d2 = harmonic
+    for k in range(seg.shape[1]):
+        w = seg[OMEGA, k]
+        a = seg[LOAD_COS, k]
+        c = seg[LOAD_CONST, k]
+        e0 = seg[ETA0, k]
+        v0 = seg[ETAD0, k]
+        abs_a = abs(a)
+        static = c / (w * w)
+        # Duhamel: free part about the static offset, zero-start forced part
+        a0 = math.hypot(e0 - static, v0 / w)
+        b1 = w * a0 + abs_a * t_end
+        b2 = w * w * a0 + abs_a * (1.0 + w * t_end)
+        b3 = w * w * w * a0 + abs_a * (1.0 + w * w * t_end)
+        den = w * w - 1.0
+        if den != 0.0:
+            pk = a / den
+            d = e0 - static - pk * sc[COS_TAU0]
+            e = (v0 + pk * sc[SIN_TAU0]) / w
+            free = math.hypot(d, e)
+            ap = abs(pk)
+            b1 = min(b1, w * free + ap)
+            b2 = min(b2, w * w * free + ap)
+            b3 = min(b3, w * w * w * free + ap)
+        alpha = abs(seg[ALPHA, k])
+        delta = abs(seg[DELTA, k])
+        d1 += alpha * b1 + delta * b2
+        d2 += alpha * b2 + delta * b3
+    d1 *= 1.0 + 1e-9
+    d2 *= 1.0 + 1e-9
+    if not (math.isfinite(d1) and math.isfinite(d2)):
+        return np.inf, np.inf
+    return d1, d2
