@@ -88,6 +88,11 @@ class SceneModes:
     b_gamma_b: float
     damping: np.ndarray | None = None
     damping_kind: str = "none"
+    damp_slip: np.ndarray | None = None
+    damp_stick: np.ndarray | None = None
+    g_c: np.ndarray | None = None
+    g_c_s: np.ndarray | None = None
+    proportional: bool = True
 
     def load(self, r: float) -> np.ndarray:
         """Amplitude p of the harmonic load at frequency ratio r."""
@@ -98,19 +103,31 @@ class SceneModes:
 
         ``gamma`` is the diagonal of the mass matrix: the kernel uses it only for
         the energy scale of seeded random starts (exact for a diagonal mass).
+        The last four are the damping data (zeros when undamped): ``damp_slip``
+        and ``damp_stick`` (``c_k = phi_k^T C phi_k`` of both phases), ``g_c``
+        (``C^T g_load``) and ``g_c_s`` (``g_load^T C T phi_s``), docs/structures.md 4.
 
         Raises
         ------
         ValueError
-            For a damped scene: the compiled simulator propagates undamped phases
-            only (the damped reference is :mod:`tasks.baseline`).
+            For damping that is not proportional (not diagonal in the modes of both
+            the sliding and the held system, docs/structures.md 4.1): the compiled
+            simulator propagates modal damping only (the reference for any ``C`` is
+            :mod:`tasks.baseline`, the closed forms :mod:`analysis.damped`).
         """
-        if self.damping is not None:
+        if not self.proportional:
             raise ValueError(
-                "damping: the compiled simulator does not handle damped scenes yet "
-                "(use tasks.baseline.paper_method for them)"
+                "damping: the simulator needs proportional damping (e.g. Rayleigh, "
+                "('rayleigh', a, b)); this C couples the modes of the sliding or held system"
             )
         c = np.ascontiguousarray
+        zeros_n, zeros_m = np.zeros(self.n), np.zeros(self.lam_s.shape[0])
+        damping_arrays = (
+            c(zeros_n if self.damp_slip is None else self.damp_slip),
+            c(zeros_m if self.damp_stick is None else self.damp_stick),
+            c(zeros_n if self.g_c is None else self.g_c),
+            c(zeros_m if self.g_c_s is None else self.g_c_s),
+        )
         return (
             c(self.gamma),
             c(self.stiffness),
@@ -133,6 +150,7 @@ class SceneModes:
             c(self.g_load),
             c(self.g_modes_s),
             float(self.g_d0),
+            *damping_arrays,
         )
 
 
@@ -169,6 +187,9 @@ def scene_modes(scene: Scene) -> SceneModes:
     m = T.shape[1]
     proj = np.linalg.solve(Gs, T.T @ G) if m else np.zeros((0, scene.dof))
     s = scene.structure
+    damping = {}
+    if s is not None and s.damping is not None:
+        damping = _modal_damping(np.array(s.damping), phi, phi_s, T, g_load)
     return SceneModes(
         n=scene.dof,
         gamma=gam,
@@ -196,4 +217,30 @@ def scene_modes(scene: Scene) -> SceneModes:
         b_gamma_b=b_gamma_b,
         damping=None if s is None or s.damping is None else np.array(s.damping),
         damping_kind="none" if s is None else s.damping_kind,
+        **damping,
     )
+
+
+#: Largest off-diagonal entry of ``Phi^T C Phi`` (relative to its diagonal scale)
+#: for the damping to count as proportional (rounding of a Rayleigh C).
+PROPORTIONAL_RTOL = 1e-9
+
+
+def _modal_damping(C, phi, phi_s, T, g_load) -> dict[str, object]:
+    """Modal damping of both phases (docs/structures.md 4.1) and whether it is modal."""
+    Cm = phi.T @ C @ phi
+    Cs = phi_s.T @ (T.T @ C @ T) @ phi_s if T.shape[1] else np.zeros((0, 0))
+    proportional = True
+    for A in (Cm, Cs):
+        if A.size:
+            d = np.sqrt(np.abs(np.diag(A)))
+            scale = np.outer(d, d) + 1e-300
+            off = np.abs(A - np.diag(np.diag(A))) / scale
+            proportional &= bool(np.max(off) <= PROPORTIONAL_RTOL)
+    return {
+        "damp_slip": np.diag(Cm).copy(),
+        "damp_stick": np.diag(Cs).copy(),
+        "g_c": C.T @ g_load,
+        "g_c_s": (g_load @ C @ T) @ phi_s if T.shape[1] else np.zeros(0),
+        "proportional": proportional,
+    }

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from analysis import closed_form, damped
-from tasks import Scene, regimes
+from tasks import Scene, classify, regimes
 from tasks.baseline import paper_method
 from tasks.scene import CONFIGURATIONS
 
@@ -112,3 +112,125 @@ def test_damped_structures_closed_forms_against_scipy(seed):
                 assert code == expected, (kind, r, beta)
                 checked += 1
     assert checked >= 12
+
+
+# ------------------------------------------------------------ the damped simulator
+def _rayleigh(name: str, a: float, b: float) -> Scene:
+    return Scene.from_matrices(**{**CONFIGURATIONS[name].matrices(), "damping": ("rayleigh", a, b)})
+
+
+@pytest.mark.parametrize("zeta", [0.05, 0.3])
+def test_simulator_gives_den_hartogs_damped_amplitude(zeta):
+    """Continuous points of a damped mass: the simulator's slip amplitude is Eq. 3.8."""
+    scene = _sdof(zeta)
+    r = np.array([0.5, 0.9, 1.0, 1.6, 3.0])
+    beta = 0.5 * closed_form.continuous_bound(scene, r, "exact")
+    res = classify(scene, r, beta)
+    assert np.all(res.regime == regimes.CONTINUOUS) and np.all(res.converged)
+    expected = [
+        damped.den_hartog_amplitude(float(a), float(b), zeta) for a, b in zip(r, beta, strict=True)
+    ]
+    np.testing.assert_allclose(res.slip_amplitude, expected, rtol=1e-7)
+    # and the regimes of the closed forms just beyond each bound
+    bc, bm = closed_form.boundaries(scene, r, "exact")
+    assert np.all(classify(scene, r, 1.02 * bc).regime == regimes.STICK_SLIP)
+    assert np.all(classify(scene, r, 1.02 * bm).regime == regimes.NO_MOTION)
+
+
+def _random_damped_scenes(rng: np.random.Generator) -> list[Scene]:
+    from tasks.structures import beam
+
+    return [
+        _sdof(0.1),
+        _rayleigh("2dof_ground_m2", 0.2, 0.05),
+        _rayleigh("2dof_base_m1", 0.2, 0.02),
+        _rayleigh("2dof_mass", 0.25, 0.0),
+        Scene.from_matrices(
+            _spd(3, rng),
+            _spd(3, rng),
+            rng.standard_normal(3),
+            ("ground", 1),
+            damping=("rayleigh", 0.2, 0.03),
+        ),
+        Scene.from_matrices(
+            _spd(3, rng),
+            _spd(3, rng),
+            rng.standard_normal(3),
+            ("between", 0, 2),
+            damping=("rayleigh", 0.15, 0.05),
+        ),
+        beam(10, contact_node=8, modes=2, damping=("rayleigh", 0.2, 0.005)),
+    ]
+
+
+def test_simulator_against_the_damped_scipy_reference():
+    """Random points of damped scenes (single mass, Rayleigh chains with every contact,
+    random full M and K, a cantilever): the regimes of the scipy reference on every
+    point, the slip amplitude within 1e-4 where it is above the reference's absolute
+    tolerance (1e-6) by a factor 100."""
+    rng = np.random.default_rng(7)
+    total = agree = moving = close = 0
+    for scene in _random_damped_scenes(rng):
+        for _ in range(3):
+            r = float(rng.uniform(0.4, 3.0))
+            bm = float(closed_form.motion_bound(scene, [r])[0])
+            beta = float(rng.uniform(0.0, 1.2 * min(bm, 5.0)))
+            res = classify(scene, r, beta)
+            code, info = paper_method(scene, r, beta, cycles=120)
+            total += 1
+            agree += int(res.regime) == code
+            if code != regimes.NO_MOTION and info["amplitude"] > 1e-4:
+                moving += 1
+                close += abs(info["amplitude"] - res.slip_amplitude) <= 1e-4 * info["amplitude"]
+    assert agree == total, (agree, total)
+    assert moving >= 8 and close >= 0.98 * moving, (close, moving)
+
+
+def test_light_damping_tends_to_the_undamped_simulator():
+    """Rayleigh damping 1e-7: the same regimes as the undamped chain, and continuous
+    amplitudes within 1e-5 (the damped formulas have the undamped limit)."""
+    chain = CONFIGURATIONS["2dof_ground_m1"]
+    light = _rayleigh("2dof_ground_m1", 1e-7, 0.0)
+    r, beta = np.meshgrid([0.4, 1.3, 2.2], [0.05, 0.3, 0.9], indexing="ij")
+    a, b = classify(chain, r, beta), classify(light, r, beta)
+    assert np.array_equal(a.regime, b.regime)
+    cont = a.regime == regimes.CONTINUOUS
+    assert cont.any()
+    np.testing.assert_allclose(b.slip_amplitude[cont], a.slip_amplitude[cont], rtol=1e-5)
+
+
+def test_energy_balance_per_period():
+    """On the converged orbit of a damped stick-slip point and a continuous one: the
+    work of the load over a period equals the friction plus the viscous dissipation
+    (sampled exactly from the closed-form phases, Simpson's rule)."""
+    from tasks import trajectory
+
+    scene = _rayleigh("2dof_ground_m1", 0.1, 0.02)
+    C, p, b = scene.damping_matrix, scene.load_vector, scene.contact_vector()
+    for r, where, code in ((1.3, 0.5, regimes.STICK_SLIP), (2.2, -0.5, regimes.CONTINUOUS)):
+        bc, bm = (float(v[0]) for v in closed_form.boundaries(scene, [r], "exact"))
+        beta = bc + where * (bm - bc) if where > 0 else -where * bc
+        tr = trajectory(scene, r, beta)
+        assert tr.result is not None and tr.result.regime == code
+        t0 = tr.tau[0]
+        tau = t0 + np.linspace(0.0, 2 * np.pi, 20001)
+        x, xd = tr.sample(tau)
+        load = (xd @ p(r)) * np.cos(tau)
+        viscous = np.einsum("ti,ij,tj->t", xd, C(r), xd)
+        friction = beta * np.abs(xd @ b)
+        w = np.ones(tau.size)
+        w[1:-1:2], w[2:-1:2] = 4.0, 2.0
+        h = (tau[1] - tau[0]) / 3.0
+        w_load, w_visc, w_fric = (h * np.sum(w * f) for f in (load, viscous, friction))
+        assert w_fric > 0.0 and w_visc > 0.0
+        assert w_load == pytest.approx(w_visc + w_fric, rel=1e-6)
+
+
+def test_non_proportional_damping_is_refused_by_the_simulator_only():
+    rng = np.random.default_rng(3)
+    scene = Scene.from_matrices(
+        _spd(3, rng), _spd(3, rng), [1.0, 0.0, 0.0], ("ground", 2), damping=0.1 * _spd(3, rng)
+    )
+    with pytest.raises(ValueError, match="^damping: the simulator needs proportional"):
+        classify(scene, 1.0, 0.1)
+    assert np.isfinite(closed_form.motion_bound(scene, [1.0])[0])  # closed forms take it
