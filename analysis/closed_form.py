@@ -60,6 +60,10 @@ finite values or ``inf``, never NaN:
 The quantities are computed scaled by the distance of the nearest ``Omega_i`` to
 an odd integer (``beta`` is homogeneous of degree 0 in ``V, U, S``), which
 removes the poles exactly.
+
+Scenes of any structure (:meth:`tasks.scene.Scene.from_matrices`) use the same
+formulas with full matrices; damped scenes take the damped closed forms of
+:mod:`analysis.damped` (docs/structures.md 3), which equal these at zero damping.
 """
 
 from __future__ import annotations
@@ -69,6 +73,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
+from analysis import damped
 from analysis.modal import ContactModes, contact_modes
 from tasks.regimes import CONTINUOUS, NO_MOTION, STICK_SLIP
 from tasks.scene import Scene
@@ -136,6 +141,15 @@ def _as_r(r: ArrayLike) -> np.ndarray:
             f"r: every frequency ratio must be finite and in [{lo:g}, {hi:g}], got {float(bad)!r}"
         )
     return r_arr
+
+
+def _undamped(scene: Scene, what: str) -> None:
+    """The modal functions of the undamped scene; damped: analysis.damped."""
+    if scene.damped:
+        raise ValueError(
+            f"scene: {what} is for undamped scenes; a damped one has "
+            "analysis.damped.half_period_terms (docs/structures.md 3)"
+        )
 
 
 def _check_method(method: str) -> None:
@@ -374,6 +388,7 @@ def response_functions(scene: Scene, r: ArrayLike) -> tuple[np.ndarray, np.ndarr
     ``G U_b``.
     """
     r_arr = _as_r(r)
+    _undamped(scene, "response_functions")
     modes = contact_modes(scene)
     rf = r_arr.ravel()
     t = _terms(modes, rf, scaled=False)
@@ -421,6 +436,7 @@ def generalised_S(scene: Scene, r: ArrayLike) -> np.ndarray:
     refinement (see :data:`MAX_GRID` for its limit at very high Omega).
     """
     r_arr = _as_r(r)
+    _undamped(scene, "generalised_S")
     rf = r_arr.ravel()
     modes = contact_modes(scene)
     t = _terms(modes, rf, scaled=False)
@@ -453,6 +469,8 @@ def continuous_bound(scene: Scene, r: ArrayLike, method: str = "paper") -> np.nd
     """
     _check_method(method)
     r_arr = _as_r(r)
+    if scene.damped:  # docs/structures.md 3.2
+        return damped.continuous_bound(scene, r_arr, method)
     rf = r_arr.ravel()
     modes = contact_modes(scene)
     t = _terms(modes, rf, scaled=True)
@@ -488,6 +506,8 @@ def motion_bound(scene: Scene, r: ArrayLike) -> np.ndarray:
         residue).
     """
     r_arr = _as_r(r)
+    if scene.damped:  # docs/structures.md 3.1
+        return damped.motion_bound(scene, r_arr)
     rf = r_arr.ravel()
     modes = contact_modes(scene)
     r2 = (rf * rf)[:, None]
@@ -618,6 +638,7 @@ def slip_velocity(scene: Scene, r: float, beta: float, tau: ArrayLike) -> np.nda
         At a pole (V_b, U_b or S infinite) or where condition (a) fails.
     """
     rf = _as_r(np.atleast_1d(r)).ravel()
+    _undamped(scene, "slip_velocity")
     if rf.size != 1:
         raise ValueError("r: slip_velocity takes one frequency ratio")
     modes = contact_modes(scene)

@@ -22,6 +22,13 @@ one formula) is
 
 and the contact stays stuck while ``|g| <= beta``. While sliding, the contact
 acceleration is ``b . x'' = (b^T Gamma^-1 b / r^2) (g - beta s)``.
+
+A scene of matrices (:meth:`tasks.scene.Scene.from_matrices`) has a full
+symmetric positive definite ``Gamma`` (its ``M``, docs/structures.md 1): every
+formula above holds as written with ``Gamma^-1`` a matrix inverse; a diagonal
+``Gamma`` (a chain, or a chain given by its matrices) takes the chain's own
+arithmetic, so both give bit-identical arrays. With damping, ``damping`` holds
+``C`` (the viscous term ``r C x'``, Eq. 1.1 of docs/structures.md).
 """
 
 from __future__ import annotations
@@ -57,6 +64,7 @@ class SceneModes:
 
     n: int
     gamma: np.ndarray
+    mass: np.ndarray
     stiffness: np.ndarray
     b: np.ndarray
     p0: np.ndarray
@@ -78,14 +86,48 @@ class SceneModes:
     g_modes_s: np.ndarray
     g_d0: float
     b_gamma_b: float
+    damping: np.ndarray | None = None
+    damping_kind: str = "none"
+    damp_slip: np.ndarray | None = None
+    damp_stick: np.ndarray | None = None
+    g_c: np.ndarray | None = None
+    g_c_s: np.ndarray | None = None
+    proportional: bool = True
 
     def load(self, r: float) -> np.ndarray:
         """Amplitude p of the harmonic load at frequency ratio r."""
         return self.p0 * (r * r) if self.load_scales_r2 else self.p0
 
     def kernel_args(self) -> tuple:
-        """The arrays in the order :func:`tasks.kernel.run_points` takes them."""
+        """The arrays in the order :func:`tasks.kernel.run_points` takes them.
+
+        ``gamma`` is the diagonal of the mass matrix: the kernel uses it only for
+        the energy scale of seeded random starts (exact for a diagonal mass).
+        The last four are the damping data (zeros when undamped): ``damp_slip``
+        and ``damp_stick`` (``c_k = phi_k^T C phi_k`` of both phases), ``g_c``
+        (``C^T g_load``) and ``g_c_s`` (``g_load^T C T phi_s``), docs/structures.md 4.
+
+        Raises
+        ------
+        ValueError
+            For damping that is not proportional (not diagonal in the modes of both
+            the sliding and the held system, docs/structures.md 4.1): the compiled
+            simulator propagates modal damping only (the reference for any ``C`` is
+            :mod:`tasks.baseline`, the closed forms :mod:`analysis.damped`).
+        """
+        if not self.proportional:
+            raise ValueError(
+                "damping: the simulator needs proportional damping (e.g. Rayleigh, "
+                "('rayleigh', a, b)); this C couples the modes of the sliding or held system"
+            )
         c = np.ascontiguousarray
+        zeros_n, zeros_m = np.zeros(self.n), np.zeros(self.lam_s.shape[0])
+        damping_arrays = (
+            c(zeros_n if self.damp_slip is None else self.damp_slip),
+            c(zeros_m if self.damp_stick is None else self.damp_stick),
+            c(zeros_n if self.g_c is None else self.g_c),
+            c(zeros_m if self.g_c_s is None else self.g_c_s),
+        )
         return (
             c(self.gamma),
             c(self.stiffness),
@@ -108,6 +150,7 @@ class SceneModes:
             c(self.g_load),
             c(self.g_modes_s),
             float(self.g_d0),
+            *damping_arrays,
         )
 
 
@@ -119,28 +162,42 @@ def generalized_modes(K: np.ndarray, G: np.ndarray) -> tuple[np.ndarray, np.ndar
     return lam, phi
 
 
+def inverse_mass_times(G: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``Gamma^-1 v``: elementwise for a diagonal ``Gamma`` (the chain's arithmetic)."""
+    d = np.diag(G)
+    if np.array_equal(G, np.diag(d)):
+        return v / d
+    return np.linalg.solve(G, v)
+
+
 def scene_modes(scene: Scene) -> SceneModes:
     """Modal data of ``scene`` (see :class:`SceneModes`)."""
     K = scene.stiffness_matrix()
-    gam = scene.mass_ratios
-    G = np.diag(gam)
+    G = scene.mass_matrix(1.0)
+    gam = np.diag(G).copy()
     b = scene.contact_vector()
     T, w = scene.stuck_basis()
     lam, phi = generalized_modes(K, G)
     Gs = T.T @ G @ T
     Ks = T.T @ K @ T
     lam_s, phi_s = generalized_modes(Ks, Gs)
-    b_gamma_b = float(b @ (b / gam))
-    g_load = (b / gam) / b_gamma_b
+    g_b = inverse_mass_times(G, b)
+    b_gamma_b = float(b @ g_b)
+    g_load = g_b / b_gamma_b
     m = T.shape[1]
     proj = np.linalg.solve(Gs, T.T @ G) if m else np.zeros((0, scene.dof))
+    s = scene.structure
+    damping = {}
+    if s is not None and s.damping is not None:
+        damping = _modal_damping(np.array(s.damping), phi, phi_s, T, g_load)
     return SceneModes(
         n=scene.dof,
         gamma=gam,
+        mass=G,
         stiffness=K,
         b=b,
         p0=scene.load_vector(1.0),
-        load_scales_r2=scene.contact == "base",
+        load_scales_r2=scene.load_scales_r2,
         lam=lam,
         phi=phi,
         phi_t_gamma=phi.T @ G,
@@ -158,4 +215,32 @@ def scene_modes(scene: Scene) -> SceneModes:
         g_modes_s=(g_load @ K @ T) @ phi_s if m else np.zeros(0),
         g_d0=float(g_load @ K @ w),
         b_gamma_b=b_gamma_b,
+        damping=None if s is None or s.damping is None else np.array(s.damping),
+        damping_kind="none" if s is None else s.damping_kind,
+        **damping,
     )
+
+
+#: Largest off-diagonal entry of ``Phi^T C Phi`` (relative to its diagonal scale)
+#: for the damping to count as proportional (rounding of a Rayleigh C).
+PROPORTIONAL_RTOL = 1e-9
+
+
+def _modal_damping(C, phi, phi_s, T, g_load) -> dict[str, object]:
+    """Modal damping of both phases (docs/structures.md 4.1) and whether it is modal."""
+    Cm = phi.T @ C @ phi
+    Cs = phi_s.T @ (T.T @ C @ T) @ phi_s if T.shape[1] else np.zeros((0, 0))
+    proportional = True
+    for A in (Cm, Cs):
+        if A.size:
+            d = np.sqrt(np.abs(np.diag(A)))
+            scale = np.outer(d, d) + 1e-300
+            off = np.abs(A - np.diag(np.diag(A))) / scale
+            proportional &= bool(np.max(off) <= PROPORTIONAL_RTOL)
+    return {
+        "damp_slip": np.diag(Cm).copy(),
+        "damp_stick": np.diag(Cs).copy(),
+        "g_c": C.T @ g_load,
+        "g_c_s": (g_load @ C @ T) @ phi_s if T.shape[1] else np.zeros(0),
+        "proportional": proportional,
+    }

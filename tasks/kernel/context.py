@@ -13,7 +13,17 @@ import math
 import numpy as np
 from numba import njit
 
-from tasks.kernel.layout import ALPHA, DELTA, LOAD_COS, N_ROWS, N_SCALARS, OMEGA, WORK_CAP
+from tasks.kernel.layout import (
+    ALPHA,
+    DAMP,
+    DAMPED,
+    DELTA,
+    LOAD_COS,
+    N_ROWS,
+    N_SCALARS,
+    OMEGA,
+    WORK_CAP,
+)
 from tasks.kernel.phases import _contact_force, _dot
 from tasks.kernel.starts import _held_response, _random_start, start_phase
 from tasks.regimes import IC_HELD, IC_RANDOM, IC_REST
@@ -58,6 +68,10 @@ def _context(r, beta, scene, settings):
         g_load,
         g_modes_s,
         g_d0,
+        damp_slip,
+        damp_stick,
+        g_c,
+        g_c_s,
     ) = scene
     event_tol = settings[0]
     step_fraction = settings[1]
@@ -78,6 +92,7 @@ def _context(r, beta, scene, settings):
             acc += phi[i, k] * p[i]
         seg_slip[LOAD_COS, k] = acc / r2
         seg_slip[DELTA, k] = w_slip[k]
+        seg_slip[DAMP, k] = 0.5 * damp_slip[k] / r  # sigma = c_k / (2 r), Eq. 4.1
         om_max = max(om_max, om)
     h_slip = step_fraction * math.pi / om_max
     om_slip = om_max
@@ -91,10 +106,18 @@ def _context(r, beta, scene, settings):
             acc += load_s[k, i] * p[i]
         seg_stick[LOAD_COS, k] = acc / r2
         seg_stick[ALPHA, k] = -g_modes_s[k]
+        # viscous part of g while stuck: -r g_load^T C T phi_s eta' (docs/structures.md 4)
+        if g_c_s[k] != 0.0:  # (undamped: row DELTA stays exactly 0)
+            seg_stick[DELTA, k] = -r * g_c_s[k]
+        seg_stick[DAMP, k] = 0.5 * damp_stick[k] / r
         om_max = max(om_max, om)
     h_stick = step_fraction * math.pi / om_max
     sc = np.zeros(N_SCALARS)
     sc[WORK_CAP] = max_work
+    damped = False
+    for k in range(n):
+        damped = damped or damp_slip[k] != 0.0
+    sc[DAMPED] = 1.0 if damped else 0.0
     ctx = (
         seg_slip,
         seg_stick,
@@ -121,6 +144,7 @@ def _context(r, beta, scene, settings):
         1e3 * event_tol,
         max(max_events, _event_cap(8.0 * max(om_slip, om_max))),
         max_work,
+        g_c * r,
     )
     work = (np.zeros(n), np.zeros(n), np.zeros(m), np.zeros(m), np.zeros(2 * m))
     # Held start: contact at d0 = 0, the rest on the forced response of the
@@ -138,5 +162,7 @@ def _context(r, beta, scene, settings):
         ic_used = initial_condition
         return ctx, work, X, start_phase(X, beta, ctx, 0.0), ic_used
     g0 = _contact_force(p, 1.0, K, X[:n], g_load)
+    if damped:
+        g0 -= r * _dot(g_c, X[n:])
     mode = 0 if abs(g0) <= beta else (1 if g0 > 0.0 else -1)
     return ctx, work, X, mode, ic_used

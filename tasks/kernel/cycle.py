@@ -18,6 +18,7 @@ from numba import njit
 
 from tasks.kernel.events import never_unsticks, next_event
 from tasks.kernel.layout import (
+    DAMPED,
     EV_END,
     EV_GRAZE,
     EV_REVERSAL,
@@ -119,6 +120,7 @@ def run_cycle(x, xd, mode, stick_start, stats, ctx, work, rec, rec_n, tau_start,
         stick_min,
         max_events,
         max_work,
+        g_c,
     ) = ctx
     eta, etad, eta_s, etad_s, q = work
     for i in range(N_STATS):
@@ -129,9 +131,11 @@ def run_cycle(x, xd, mode, stick_start, stats, ctx, work, rec, rec_n, tau_start,
     tau = tau_start
     v0 = _dot(b, xd)
     events = 0
-    _record(
-        rec, rec_n, tau, EV_SECTION, mode, _contact_force(p, math.cos(tau), K, x, g_load), x, xd
-    )
+    if rec.shape[0]:
+        g = _contact_force(p, math.cos(tau), K, x, g_load)
+        if sc[DAMPED] != 0.0:
+            g -= _dot(g_c, xd)
+        _record(rec, rec_n, tau, EV_SECTION, mode, g, x, xd)
     while True:
         remaining = tau_end - tau
         if remaining <= tol:  # an event right at the end of the run
@@ -188,6 +192,8 @@ def run_cycle(x, xd, mode, stick_start, stats, ctx, work, rec, rec_n, tau_start,
             if not found:
                 break
             g = _contact_force(p, math.cos(tau + t), K, x, g_load)
+            if sc[DAMPED] != 0.0:  # viscous part: -r g_load . C x'
+                g -= _dot(g_c, xd)
             if abs(g) <= beta:
                 mode = 0
                 stick_start = tau + t
@@ -215,9 +221,11 @@ def run_cycle(x, xd, mode, stick_start, stats, ctx, work, rec, rec_n, tau_start,
     for i in range(x.shape[0]):
         if not (math.isfinite(x[i]) and math.isfinite(xd[i])):
             stats[ST_STATUS] = NUMERICAL_FAILURE
-    _record(
-        rec, rec_n, tau_end, EV_END, mode, _contact_force(p, math.cos(tau_end), K, x, g_load), x, xd
-    )
+    if rec.shape[0]:
+        g = _contact_force(p, math.cos(tau_end), K, x, g_load)
+        if sc[DAMPED] != 0.0:
+            g -= _dot(g_c, xd)
+        _record(rec, rec_n, tau_end, EV_END, mode, g, x, xd)
     return mode, stick_start
 
 

@@ -14,8 +14,12 @@ from numba import njit
 
 from tasks.kernel.context import _context
 from tasks.kernel.cycle import run_cycle
+from tasks.kernel.damping import particular, stick_force_bound_damped
 from tasks.kernel.layout import (
     CTX_B,
+    CTX_DSTAT_R2,
+    CTX_G_COS,
+    CTX_G_D0,
     CTX_G_LOAD,
     CTX_H_SLIP,
     CTX_H_STICK,
@@ -23,7 +27,14 @@ from tasks.kernel.layout import (
     CTX_MAX_EVENTS,
     CTX_P,
     CTX_PHI,
+    CTX_PHI_S_T_GAMMA_S,
+    CTX_PROJ,
+    CTX_SC,
     CTX_SEG_SLIP,
+    CTX_SEG_STICK,
+    CTX_W,
+    DAMP,
+    DAMPED,
     LOAD_COS,
     N_STATS,
     OMEGA,
@@ -37,7 +48,7 @@ from tasks.kernel.layout import (
     STATUS_OK,
     TWO_PI,
 )
-from tasks.kernel.phases import _contact_force, _dot, _matvec
+from tasks.kernel.phases import _contact_force, _dot, _matvec, _start_stick
 from tasks.kernel.records import sample_states
 
 # Columns of :func:`orbit_designs`'s output, per point (n = number of masses):
@@ -136,6 +147,22 @@ def orbit_design(r, beta, scene, settings, state, period, samples, dout):
     K = ctx[CTX_K]
     b = ctx[CTX_B]
     g_load = ctx[CTX_G_LOAD]
+    damped = ctx[CTX_SC][DAMPED] != 0.0
+    if beta == 0.0 and damped:  # linear, damped: sum_k phi_k (P_k cos + Q_k sin)
+        seg = ctx[CTX_SEG_SLIP]
+        phi = ctx[CTX_PHI]
+        for i in range(n):
+            vc = 0.0
+            vs = 0.0
+            for k in range(n):
+                P, Q = particular(seg[OMEGA, k], seg[DAMP, k], seg[LOAD_COS, k])
+                vc += phi[i, k] * P
+                vs += phi[i, k] * Q
+            dout[i] = math.hypot(vc, vs)
+            dout[n + i] = math.hypot(vc - c, vs)
+        dout[2 * n + DESIGN_FORCE] = 0.0
+        dout[2 * n + DESIGN_DISSIPATION] = 0.0
+        return 0
     if beta == 0.0:  # linear, undamped: the forced response (K - M)^-1 p cos tau
         seg = ctx[CTX_SEG_SLIP]
         phi = ctx[CTX_PHI]
@@ -236,6 +263,27 @@ def orbit_design(r, beta, scene, settings, state, period, samples, dout):
             dout[which * n + i] = 0.5 * (hi - lo)
     if sliding:
         force = beta
+    elif damped:  # stuck the whole (converged) orbit: G0 + Hc cos + Hs sin, no free part left
+        x = state[:n].copy()
+        xd = state[n : 2 * n].copy()
+        eta, etad, eta_s, etad_s, q = work
+        _start_stick(
+            ctx[CTX_SEG_STICK],
+            ctx[CTX_SC],
+            x,
+            xd,
+            theta,
+            beta,
+            b,
+            ctx[CTX_W],
+            ctx[CTX_PROJ],
+            ctx[CTX_PHI_S_T_GAMMA_S],
+            ctx[CTX_DSTAT_R2],
+            ctx[CTX_G_COS],
+            ctx[CTX_G_D0],
+            q,
+        )
+        force = stick_force_bound_damped(ctx[CTX_SEG_STICK], ctx[CTX_SC])
     else:  # stuck the whole orbit: the largest |g| (g' = -g_load . (p sin tau + K x'))
         acc[0] = np.inf
         acc[1] = -np.inf

@@ -19,10 +19,12 @@ import math
 import numpy as np
 from numba import njit
 
+from tasks.kernel.damping import stick_force_bound_damped
 from tasks.kernel.layout import (
     ALPHA,
     BETA,
     COS_TAU0,
+    DAMPED,
     ETA0,
     ETAD0,
     EVALS,
@@ -65,7 +67,10 @@ def _no_zero_between(fa, da, fb, db, h, curvature, slope=np.inf):
 def stick_force_bound(seg, sc):
     """``|G0| + |H| + sum_k |alpha_k| A_free,k``: the largest ``|g|`` a stick phase
     can ever reach (the bound of :func:`never_unsticks`; tight when the free
-    frequencies are incommensurate with the excitation and each other)."""
+    frequencies are incommensurate with the excitation and each other). A damped
+    scene takes :func:`tasks.kernel.damping.stick_force_bound_damped`."""
+    if sc[DAMPED] != 0.0:
+        return stick_force_bound_damped(seg, sc)
     harmonic = sc[OBS_COS]
     free_sum = 0.0
     # sc[OBS0] is g at tau0; rebuild the constant part from the modal split.

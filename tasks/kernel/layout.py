@@ -13,11 +13,14 @@ TWO_PI = 2.0 * math.pi
 
 # Rows of the per-mode segment array ``seg`` (shape (N_ROWS, m)), the data of one
 # phase in its modal coordinates (tasks.kernel.propagation, Eq. (1)).
-OMEGA, ETA0, ETAD0, LOAD_COS, LOAD_CONST, ALPHA, DELTA = range(7)
-N_ROWS = 7
-# Entries of the scalar segment array ``sc``.
-TAU0, COS_TAU0, SIN_TAU0, OBS_COS, OBS0, KIND, SIGN, BETA, EVALS, WORK_CAP = range(10)
-N_SCALARS = 10
+# DAMP is the modal decay rate sigma (eta'' + 2 sigma eta' + ..., tasks.kernel.damping);
+# zero for every mode of an undamped scene.
+OMEGA, ETA0, ETAD0, LOAD_COS, LOAD_CONST, ALPHA, DELTA, DAMP = range(8)
+N_ROWS = 8
+# Entries of the scalar segment array ``sc``. DAMPED: 1.0 when the scene is damped
+# (both phases then take tasks.kernel.damping), 0.0 for the undamped code path.
+TAU0, COS_TAU0, SIN_TAU0, OBS_COS, OBS0, KIND, SIGN, BETA, EVALS, WORK_CAP, DAMPED = range(11)
+N_SCALARS = 11
 KIND_SLIP = 0.0
 KIND_STICK = 1.0
 
@@ -47,6 +50,7 @@ CTX_TOL = 21
 CTX_STICK_MIN = 22
 CTX_MAX_EVENTS = 23
 CTX_MAX_WORK = 24
+CTX_G_C = 25  # r C^T g_load: the viscous part of the contact force is -CTX_G_C . x'
 
 # Entries of the per-cycle statistics array.
 (

@@ -25,6 +25,8 @@ from tasks.kernel.layout import (
     ALPHA,
     BETA,
     COS_TAU0,
+    DAMPED,
+    DELTA,
     ETA0,
     ETAD0,
     KIND,
@@ -118,6 +120,9 @@ def _start_stick(seg, sc, x, xd, tau, beta, b, w, proj, phi_s_t_gamma_s, dstat_r
     g0 = g_cos * ctau - g_d0 * d0
     for k in range(m):
         g0 += seg[ALPHA, k] * seg[ETA0, k]
+    if sc[DAMPED] != 0.0:  # viscous part of g (row DELTA of the stuck phase)
+        for k in range(m):
+            g0 += seg[DELTA, k] * seg[ETAD0, k]
     sc[TAU0] = tau
     sc[COS_TAU0] = ctau
     sc[SIN_TAU0] = math.sin(tau)

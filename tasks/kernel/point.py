@@ -20,6 +20,7 @@ from numba import njit
 from tasks.kernel.context import _context
 from tasks.kernel.creep import _asymptotic_no_motion, _creep_limit, creep_settled, creep_threshold
 from tasks.kernel.cycle import _advance, _cycle, _max_abs, _max_abs_diff
+from tasks.kernel.damping import is_damped, linear_amplitude_damped
 from tasks.kernel.layout import (
     CTX_BETA,
     CTX_F_R2,
@@ -77,7 +78,9 @@ HELD_MARGIN_RTOL = 1e-9
 @njit(cache=True)
 def _linear_amplitude(seg_slip):
     """Amplitude of ``b . x`` on the forced response of the sliding system without
-    friction: ``|b . (K - M)^-1 p|`` (inf at a resonance)."""
+    friction: ``|b . (K - M)^-1 p|`` (inf at a resonance; damped: tasks.kernel.damping)."""
+    if is_damped(seg_slip):
+        return linear_amplitude_damped(seg_slip)
     amp = 0.0
     for k in range(seg_slip.shape[1]):
         den = seg_slip[OMEGA, k] ** 2 - 1.0
@@ -95,8 +98,11 @@ def _resonant_growth(seg_slip, f_r2, beta):
     mode k with ``pi |a_k| A`` per cycle while the contact dissipates at most
     ``4 beta |phi_k . b| A / r^2``; the amplitude A grows without bound when
     ``beta < pi |a_k| / (4 |f_k|)`` (SDOF: beta < pi/4). Used only where the
-    rate of growth can be too slow to see in simulation.
+    rate of growth can be too slow to see in simulation. Damped: never (every
+    motion stays bounded, docs/structures.md 4.4).
     """
+    if is_damped(seg_slip):
+        return False
     for k in range(seg_slip.shape[1]):
         w = seg_slip[OMEGA, k]
         a = seg_slip[LOAD_COS, k]

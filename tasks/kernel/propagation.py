@@ -37,10 +37,12 @@ import math
 import numpy as np
 from numba import njit
 
+from tasks.kernel.damping import derivative_bounds_damped, evaluate_damped
 from tasks.kernel.layout import (
     ALPHA,
     BETA,
     COS_TAU0,
+    DAMPED,
     DELTA,
     ETA0,
     ETAD0,
@@ -72,8 +74,11 @@ def evaluate(seg, sc, t, eta, etad):
     """State and observable of a phase at time ``t`` after its start.
 
     Writes the modal displacements and velocities into ``eta`` and ``etad`` and
-    returns ``(y, y')``, the observable and its derivative.
+    returns ``(y, y')``, the observable and its derivative. A damped scene
+    (``sc[DAMPED]``) takes :func:`tasks.kernel.damping.evaluate_damped`.
     """
+    if sc[DAMPED] != 0.0:
+        return evaluate_damped(seg, sc, t, eta, etad)
     m = seg.shape[1]
     h = 0.5 * t
     sh = math.sin(h)
@@ -157,8 +162,11 @@ def derivative_bounds(seg, sc, t_end):
       ``Omega^k A0 + (those)`` at ``t = t_end``.
 
     Both are multiplied by ``1 + 1e-9`` (a safety margin far above the rounding
-    of the sums). Returns ``inf`` only for non-finite data.
+    of the sums). Returns ``inf`` only for non-finite data. A damped scene takes
+    :func:`tasks.kernel.damping.derivative_bounds_damped`.
     """
+    if sc[DAMPED] != 0.0:
+        return derivative_bounds_damped(seg, sc, t_end)
     harmonic = abs(sc[OBS_COS])
     d1 = harmonic
     d2 = harmonic

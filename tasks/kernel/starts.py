@@ -14,15 +14,20 @@ import math
 import numpy as np
 from numba import njit
 
+from tasks.kernel.damping import held_force_amplitude, held_modal_state, is_damped
 from tasks.kernel.layout import (
     CTX_B,
     CTX_BETA,
+    CTX_G_C,
+    CTX_G_COS,
     CTX_G_LOAD,
     CTX_K,
     CTX_P,
     CTX_PHI_S,
+    CTX_SC,
     CTX_SEG_STICK,
     CTX_T,
+    DAMPED,
     LOAD_COS,
     OMEGA,
 )
@@ -37,6 +42,18 @@ def _held_response(seg_stick, phi_s, T, n):
     exist when a loaded mode of the held system is resonant."""
     m = seg_stick.shape[1]
     X = np.zeros(2 * n)
+    if is_damped(seg_stick):  # damped: cos and sin parts (tasks.kernel.damping)
+        eta, etad = held_modal_state(seg_stick)
+        for i in range(m):
+            qi = 0.0
+            qd = 0.0
+            for k in range(m):
+                qi += phi_s[i, k] * eta[k]
+                qd += phi_s[i, k] * etad[k]
+            for j in range(n):
+                X[j] += T[j, i] * qi
+                X[n + j] += T[j, i] * qd
+        return X, True
     zeta = np.zeros(m)
     for k in range(m):
         den = seg_stick[OMEGA, k] ** 2 - 1.0
@@ -68,6 +85,8 @@ def held_margin(ctx):
     sliding is at most that energy over ``delta``.
     """
     seg_stick = ctx[CTX_SEG_STICK]
+    if ctx[CTX_SC][DAMPED] != 0.0:  # g_h = Hc cos tau + Hs sin tau (docs/structures.md 3.1)
+        return ctx[CTX_BETA] - held_force_amplitude(seg_stick, ctx[CTX_G_COS])
     n = ctx[CTX_P].shape[0]
     X, exists = _held_response(seg_stick, ctx[CTX_PHI_S], ctx[CTX_T], n)
     if not exists:
@@ -132,4 +151,6 @@ def start_phase(X, beta, ctx, theta):
     if v < 0.0:
         return -1
     g0 = _contact_force(p, math.cos(theta), K, X[:n], g_load)
+    if ctx[CTX_SC][DAMPED] != 0.0:
+        g0 -= _dot(ctx[CTX_G_C], X[n:])
     return 0 if abs(g0) <= beta else (1 if g0 > 0.0 else -1)
