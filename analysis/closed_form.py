@@ -138,6 +138,12 @@ def _as_r(r: ArrayLike) -> np.ndarray:
     return r_arr
 
 
+def _check_scene(scene: object) -> None:
+    if not isinstance(scene, Scene):
+        got = type(scene).__name__
+        raise TypeError(f"scene: must be a tasks.Scene, e.g. Scene('ground', 2), got a {got}")
+
+
 def _check_method(method: str) -> None:
     if method not in METHODS:
         raise ValueError(f"method: must be one of {METHODS}, got {method!r}")
@@ -451,6 +457,7 @@ def continuous_bound(scene: Scene, r: ArrayLike, method: str = "paper") -> np.nd
         Same shape as ``r``; finite and >= 0 (limits at the poles, see the module
         notes).
     """
+    _check_scene(scene)
     _check_method(method)
     r_arr = _as_r(r)
     rf = r_arr.ravel()
@@ -487,6 +494,7 @@ def motion_bound(scene: Scene, r: ArrayLike) -> np.ndarray:
         within :data:`SNAP_ULPS` ulp of one of its eigenvalues with non-zero
         residue).
     """
+    _check_scene(scene)
     r_arr = _as_r(r)
     rf = r_arr.ravel()
     modes = contact_modes(scene)

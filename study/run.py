@@ -38,6 +38,8 @@ from distributed.diagnostics.plugin import WorkerPlugin
 
 from study.chunks import Chunk, ScenePlan, plan
 from study.compute import compute_chunk
+from study.connect import DEFAULT_SCHEDULER_TIMEOUT, call_within, check_timeout
+from study.connect import connect as connect_scheduler
 from study.cost import CostTracker
 from study.definition import Study
 from study.errors import StudyError, StudyFailed, StudyInterrupted
@@ -47,6 +49,7 @@ from study.progress import Progress
 from study.store import WorkDir, temporary_outputs
 from study.verify import chunk_shape
 from study.watchdog import (
+    ASK_TIMEOUT,
     DEFAULT_WORKER_TIMEOUT,
     Watchdog,
     quiet_dask_logs,
@@ -132,6 +135,8 @@ def connect(
     scheduler_file: str | None = None,
     workers: int | None = None,
     stream: TextIO = sys.stderr,
+    scheduler_timeout: float = DEFAULT_SCHEDULER_TIMEOUT,
+    worker_timeout: float = DEFAULT_WORKER_TIMEOUT,
 ):
     """A Dask client: the one given, a running scheduler, or a new LocalCluster.
 
@@ -148,14 +153,7 @@ def connect(
     cluster = None
     if scheduler or scheduler_file:
         where = scheduler or scheduler_file
-        flag = "--scheduler" if scheduler else "--scheduler-file"
-        if scheduler_file and not Path(scheduler_file).is_file():
-            raise StudyError(flag, f"no such scheduler file: {scheduler_file}")
-        kw = {"address": scheduler} if scheduler else {"scheduler_file": scheduler_file}
-        try:
-            client = Client(**kw, timeout="30s")
-        except (OSError, TimeoutError, ValueError) as exc:
-            raise StudyError(flag, f"cannot connect to {where}: {exc}") from None
+        client = connect_scheduler(scheduler, scheduler_file, scheduler_timeout)  # bounded
         try:
             n = len(client.nthreads())
             print(
@@ -165,7 +163,15 @@ def connect(
             )
             if workers and n < workers:
                 print(f"study: waiting for {workers} workers", file=stream)
-                client.wait_for_workers(workers)
+                try:  # bounded: workers that never come, a scheduler that stops answering
+                    call_within(
+                        worker_timeout + scheduler_timeout, client.wait_for_workers, workers
+                    )
+                except TimeoutError:
+                    raise StudyFailed(
+                        f"{workers} workers did not connect to {where} within "
+                        f"{worker_timeout:g} s (--worker-timeout); nothing was computed"
+                    ) from None
             elif not n:
                 print("study: no workers yet; tasks wait until workers connect", file=stream)
         except BaseException:
@@ -204,10 +210,13 @@ def connect(
             raise
     try:
         yield client
-    finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+    finally:  # bounded: the scheduler or the workers may have stopped answering
+        try:
+            call_within(2 * scheduler_timeout, client.close)
+            if cluster is not None:
+                call_within(2 * scheduler_timeout, cluster.close)
+        except TimeoutError:
+            pass
 
 
 def _check_runnable(study: Study, output: Path, overwrite: bool = False) -> None:
@@ -235,6 +244,7 @@ def run_study(
     stream: TextIO | None = None,
     overwrite: bool = False,
     worker_timeout: float = DEFAULT_WORKER_TIMEOUT,
+    scheduler_timeout: float = DEFAULT_SCHEDULER_TIMEOUT,
 ) -> RunSummary:
     """Compute every missing chunk of ``study`` and write the result to ``output``.
 
@@ -257,8 +267,11 @@ def run_study(
         Compute and replace an ``output`` that exists (complete) already;
         without it such a run is refused.
     worker_timeout : float
-        Seconds without any connected worker, or 20 s without the scheduler,
+        Seconds without any live worker (none connected, or all stopped answering)
         before the run stops with ``StudyFailed`` (:mod:`study.watchdog`).
+    scheduler_timeout : float
+        Seconds a scheduler may take to answer, at connection (``StudyError``)
+        and during the run (``StudyFailed``) (:mod:`study.connect`).
 
     Raises
     ------
@@ -277,6 +290,11 @@ def run_study(
     RunSummary or xarray.DataTree
         What the run did (with ``output``), or the result (without).
     """
+    if not isinstance(study, Study):
+        raise TypeError(
+            f"study: must be a Study (Study.from_toml(path)), got a {type(study).__name__}"
+        )
+    check_timeout(scheduler_timeout, "--scheduler-timeout")
     stream = stream if stream is not None else sys.stderr
     t0 = time.perf_counter()
     in_memory = output is None
@@ -339,7 +357,8 @@ def run_study(
             if client is None and not (scheduler or scheduler_file):
                 compile_once(stream)  # before the local workers start: they load it from cache
             quiet = quiet_dask_logs() if client is None else nullcontext()
-            with quiet, connect(client, scheduler, scheduler_file, workers, stream) as c:
+            kw = {"scheduler_timeout": scheduler_timeout, "worker_timeout": worker_timeout}
+            with quiet, connect(client, scheduler, scheduler_file, workers, stream, **kw) as c:
                 bar.start()
                 t1 = time.perf_counter()
                 dog = Watchdog(
@@ -348,6 +367,7 @@ def run_study(
                     local=client is None and not (scheduler or scheduler_file),
                     where=str(work.path),
                     stream=stream,
+                    scheduler_timeout=scheduler_timeout,
                 )
                 if missing:
                     grid = [p for p in plans if p.kind != "adaptive"]
@@ -517,7 +537,10 @@ def _compute(
                     bar.tracker.record(chunk.scene, chunk.n_points, float(arrays["seconds"]))
             fill()
     except BaseException:
-        client.cancel([f for f, _ in inflight.values()])
+        try:  # bounded: the scheduler may be the one that stopped answering
+            call_within(ASK_TIMEOUT, client.cancel, [f for f, _ in inflight.values()])
+        except TimeoutError:
+            pass
         raise
     if inflight:  # as_completed ended with chunks unaccounted for: never silently
         chunk = next(iter(inflight.values()))[1]
