@@ -56,8 +56,8 @@ def check_timeout(value: object, flag: str, maximum: float = MAX_SCHEDULER_TIMEO
     return float(value)
 
 
-def call_within(timeout: float, func: Callable[..., T], *args: Any, **kwargs: Any) -> T:
-    """``func(*args, **kwargs)``, or :class:`TimeoutError` after ``timeout`` seconds.
+def call_within(seconds: float, func: Callable[..., T], /, *args: Any, **kwargs: Any) -> T:
+    """``func(*args, **kwargs)``, or :class:`TimeoutError` after ``seconds``.
 
     The call runs in a daemon thread; when it does not return in time it is left
     there (it may never return: a blocked socket read) and the caller goes on.
@@ -75,8 +75,8 @@ def call_within(timeout: float, func: Callable[..., T], *args: Any, **kwargs: An
             done.set()
 
     threading.Thread(target=run, name="study-bounded-call", daemon=True).start()
-    if not done.wait(timeout):
-        raise TimeoutError(f"no answer within {timeout:g} s")
+    if not done.wait(seconds):
+        raise TimeoutError(f"no answer within {seconds:g} s")
     if "error" in box:
         raise box["error"]
     return box["value"]
