@@ -196,14 +196,13 @@ def _ratio(raw: object, key: str, dof: int) -> float | tuple[float, ...] | Axis:
     if fields.is_number(raw):
         return fields.number(raw, key, 0.0, strict=True)
     if fields.is_list(raw):
-        vals = fields.numbers(raw, key, 0.0, strict=True)
-        if len(vals) != dof - 1:
+        if len(raw) != dof - 1:
             raise StudyError(
                 key,
                 f"a list gives the ratios of masses/springs 2..{dof}, so it needs dof - 1 = "
-                f"{dof - 1} entries, got {len(vals)} (to sweep, write {{values = [...]}})",
+                f"{dof - 1} entries, got {len(raw)} (to sweep, write {{values = [...]}})",
             )
-        return vals
+        return fields.numbers(raw, key, 0.0, strict=True)
     raise StudyError(key, f"must be a number, a list or a sweep (Axis), got {_show(raw)}")
 
 
