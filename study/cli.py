@@ -69,6 +69,12 @@ def _positive_int(text: str) -> int:
     return value
 
 
+def _study_options(parser: argparse.ArgumentParser, workers_help: str) -> None:
+    """``--workers N`` and ``--fidelity NAME`` (``run`` and ``plan``)."""
+    parser.add_argument("--workers", type=_positive_int, metavar="N", help=workers_help)
+    parser.add_argument("--fidelity", metavar="NAME", help="override the study's fidelity preset")
+
+
 def build_parser() -> argparse.ArgumentParser:
     from frictionregimes import __version__
 
@@ -87,18 +93,18 @@ def build_parser() -> argparse.ArgumentParser:
 
     run = sub.add_parser("run", help="compute a study and write one netCDF file")
     run.add_argument("study", type=Path, help="study file (TOML)")
-    run.add_argument("-o", "--output", type=Path, help="result file (default: STUDY_NAME.nc)")
+    run.add_argument(
+        "-o", "--output", type=Path, metavar="OUT.nc", help="result file (default: NAME.nc)"
+    )
     where = run.add_mutually_exclusive_group()
     where.add_argument("--scheduler", metavar="ADDRESS", help="address of a running scheduler")
     where.add_argument("--scheduler-file", metavar="FILE", help="scheduler file of a running one")
-    run.add_argument(
-        "--workers",
-        type=_positive_int,
-        metavar="N",
-        help="local worker processes (default: one per core); with --scheduler: wait for N workers",
+    _study_options(
+        run, "local worker processes (default: one per core); with --scheduler: wait for N workers"
     )
-    run.add_argument("--fidelity", metavar="NAME", help="override the study's fidelity preset")
-    run.add_argument("--retries", type=int, default=3, help="retries of a failing task (0-100)")
+    run.add_argument(
+        "--retries", type=int, default=3, metavar="N", help="retries of a failing task (0-100)"
+    )
     run.add_argument(
         "--worker-timeout",
         type=float,
@@ -122,13 +128,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     pl = sub.add_parser("plan", help="points, tasks and estimated time, without running")
     pl.add_argument("study", type=Path, help="study file (TOML)")
-    pl.add_argument("--fidelity", metavar="NAME", help="override the study's fidelity preset")
-    pl.add_argument(
-        "--workers",
-        type=_positive_int,
-        metavar="N",
-        help="workers the wall time is estimated for (default: one per core)",
-    )
+    _study_options(pl, "workers the wall time is estimated for (default: one per core)")
     pl.add_argument(
         "--calibrate",
         action="store_true",

@@ -24,6 +24,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
+from test_reliability_faults import _start_run, _wait_saved
 from test_study_cluster import LONG, _env, dask_cluster
 
 from study.connect import connect
@@ -136,27 +137,6 @@ def test_stopped_scheduler_before_the_run_one_line_exit_2(tmp_path):
     _nothing_written(tmp_path)
 
 
-def _start(cwd: Path, *args: str) -> subprocess.Popen:
-    (cwd / "long.toml").write_text(LONG, encoding="utf-8")
-    return subprocess.Popen(
-        [sys.executable, "-m", "study", "run", "long.toml", "-o", "long.nc", "--quiet", *args],
-        cwd=cwd,
-        env=_env(),
-        stderr=subprocess.PIPE,
-        text=True,
-        start_new_session=True,
-    )
-
-
-def _wait_saved(out: Path, n: int, proc: subprocess.Popen) -> None:
-    deadline = time.monotonic() + WAIT
-    work = out.with_name(out.name + ".work")
-    while len(list(work.glob("*/*.npz"))) < n:
-        assert proc.poll() is None, proc.stderr.read()
-        assert time.monotonic() < deadline, "the run saved nothing"
-        time.sleep(0.2)
-
-
 def _finish(proc: subprocess.Popen) -> subprocess.CompletedProcess:
     try:
         _, err = proc.communicate(timeout=WAIT)
@@ -168,8 +148,10 @@ def _finish(proc: subprocess.Popen) -> subprocess.CompletedProcess:
 
 def test_scheduler_stopped_mid_run_one_line_exit_1(tmp_path):
     with dask_cluster(tmp_path / "cluster", n_workers=1, nanny=False, dashboard=False) as cl:
-        proc = _start(
-            tmp_path, "--scheduler-file", str(cl.scheduler_file), "--scheduler-timeout", "4"
+        proc = _start_run(
+            tmp_path,
+            *("-o", "long.nc", "--quiet", "--scheduler-file", str(cl.scheduler_file)),
+            *("--scheduler-timeout", "4"),
         )
         try:
             _wait_saved(tmp_path / "long.nc", 2, proc)
@@ -190,7 +172,9 @@ def test_scheduler_stopped_mid_run_one_line_exit_1(tmp_path):
 def test_local_workers_stopped_mid_run_one_line_exit_1(tmp_path):
     import psutil
 
-    proc = _start(tmp_path, "--workers", "1", "--worker-timeout", "6")
+    proc = _start_run(
+        tmp_path, "-o", "long.nc", "--quiet", "--workers", "1", "--worker-timeout", "6"
+    )
     stopped = []
     try:
         _wait_saved(tmp_path / "long.nc", 1, proc)
