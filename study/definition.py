@@ -285,7 +285,8 @@ class SceneSpec:
             base = self.base_scene
         except ValueError as exc:
             raise field_error("", exc) from None
-        put("name", base.label if self.name in ("", None) else _name(self.name, "name"))
+        unnamed = self.name is None or (isinstance(self.name, str) and not self.name)
+        put("name", base.label if unnamed else _name(self.name, "name"))
 
     def _check_points(self, mode: str, dof: int) -> None:
         grid = [k for k in ("r", "beta") if getattr(self, k) is not None]

@@ -29,7 +29,7 @@ import sys
 import time
 from collections.abc import Iterator
 from concurrent.futures import CancelledError
-from contextlib import contextmanager, nullcontext
+from contextlib import contextmanager, nullcontext, suppress
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TextIO
@@ -155,7 +155,7 @@ def connect(
         where = scheduler or scheduler_file
         client = connect_scheduler(scheduler, scheduler_file, scheduler_timeout)  # bounded
         try:
-            n = len(client.nthreads())
+            n = len(call_within(scheduler_timeout, client.nthreads))
             print(
                 f"study: connected to {client.scheduler.address} ({n} workers), "
                 f"{dashboard_note(client, local=False)}",
@@ -174,8 +174,14 @@ def connect(
                     ) from None
             elif not n:
                 print("study: no workers yet; tasks wait until workers connect", file=stream)
-        except BaseException:
-            client.close()
+        except BaseException as exc:
+            with suppress(TimeoutError):
+                call_within(2 * scheduler_timeout, client.close)
+            if isinstance(exc, TimeoutError):  # call_within's: the scheduler went silent
+                raise StudyFailed(
+                    f"the scheduler {where} stopped answering after the connection "
+                    f"({scheduler_timeout:g} s, --scheduler-timeout); nothing was computed"
+                ) from None
             raise
     else:
         n = workers or default_workers()
@@ -211,12 +217,10 @@ def connect(
     try:
         yield client
     finally:  # bounded: the scheduler or the workers may have stopped answering
-        try:
+        with suppress(TimeoutError):
             call_within(2 * scheduler_timeout, client.close)
             if cluster is not None:
                 call_within(2 * scheduler_timeout, cluster.close)
-        except TimeoutError:
-            pass
 
 
 def _check_runnable(study: Study, output: Path, overwrite: bool = False) -> None:
@@ -483,8 +487,8 @@ def _compute(
         now = time.monotonic()
         if now >= next_look:  # workers come and go (adaptive clusters, lost workers)
             try:
-                threads = sum(client.nthreads().values())
-            except OSError:  # the scheduler is unreachable: the watchdog decides
+                threads = sum(call_within(ASK_TIMEOUT, client.nthreads).values())
+            except (OSError, TimeoutError):  # unreachable or silent: the watchdog decides
                 threads = 0
             window = max(MIN_WINDOW, WINDOW_PER_THREAD * threads)
             next_look = now + WINDOW_REFRESH
@@ -537,10 +541,8 @@ def _compute(
                     bar.tracker.record(chunk.scene, chunk.n_points, float(arrays["seconds"]))
             fill()
     except BaseException:
-        try:  # bounded: the scheduler may be the one that stopped answering
+        with suppress(TimeoutError):  # bounded: the scheduler may be the one that went silent
             call_within(ASK_TIMEOUT, client.cancel, [f for f, _ in inflight.values()])
-        except TimeoutError:
-            pass
         raise
     if inflight:  # as_completed ended with chunks unaccounted for: never silently
         chunk = next(iter(inflight.values()))[1]
