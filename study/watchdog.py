@@ -18,8 +18,10 @@ workers with a bounded wait (:data:`ASK_TIMEOUT`):
   worker is left when the worker processes died and their managers (nannies)
   gave up restarting them; the message says so.
 
-Either ends in :class:`~study.errors.StudyFailed` (one line, exit 1) within
-the timeout plus about :data:`ASK_TIMEOUT` seconds; every finished chunk is
+Either ends in :class:`~study.errors.StudyFailed` (one line, exit 1) about
+one second after its timeout (a look never waits past the scheduler timeout);
+the run then cancels its tasks and closes the connection, each bounded
+(:data:`ASK_TIMEOUT`, twice the scheduler timeout); every finished chunk is
 already saved in the work folder, so a rerun resumes. A worker runs one numba
 call of a chunk with the GIL held, which can delay its heartbeat: keep
 ``--worker-timeout`` well above the longest single call (the default is ample).
@@ -112,7 +114,7 @@ class Watchdog:
         self.stream = stream
         self.clock = clock
         self._next_look = 0.0
-        self._lost_since: float | None = None
+        self._lost_since: float | None = None  # start of the first look without an answer
         self._idle_since: float | None = None
         self._alive_at: float | None = None
         self._beats: dict[str, object] = {}
@@ -131,18 +133,18 @@ class Watchdog:
         tty = bool(getattr(self.stream, "isatty", lambda: False)())
         print(("\n" if tty else "") + f"study: {text}", file=self.stream, flush=True)
 
-    def ask(self) -> dict | None:
+    def ask(self, wait: float = ASK_TIMEOUT) -> dict | None:
         """The scheduler's fresh answer (its identity, every worker), or None.
 
         None when the client is not connected, or the scheduler has not answered
-        within :data:`ASK_TIMEOUT` seconds (the question stays pending: the next
-        look waits for the same answer, never a second thread).
+        within ``wait`` seconds (the question stays pending: the next look waits
+        for the same answer, never a second thread).
         """
         if self.client.status != "running":
             return None
         if self._asking is None or self._asking.done.is_set():
             self._asking = _Ask(self.client)
-        info = self._asking.result(ASK_TIMEOUT)
+        info = self._asking.result(wait)
         if info is None or info is self._last_info:  # distributed keeps a stale copy
             return None
         self._last_info = info
@@ -170,10 +172,15 @@ class Watchdog:
         if now < self._next_look:
             return
         self._next_look = now + LOOK_INTERVAL
-        info = self.ask()
+        start = now
+        left = self.scheduler_timeout
+        if self._lost_since is not None:  # never wait past the scheduler timeout
+            left -= now - self._lost_since
+        info = self.ask(min(ASK_TIMEOUT, max(0.05, left)))
+        now = max(now, self.clock())
         address = getattr(getattr(self.client, "scheduler", None), "address", "?")
         if info is None:
-            self._lost_since = self._lost_since if self._lost_since is not None else now
+            self._lost_since = self._lost_since if self._lost_since is not None else start
             silent = now - self._lost_since
             if silent >= self.scheduler_timeout:
                 if self.client.status != "running":
