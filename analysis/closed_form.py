@@ -152,6 +152,12 @@ def _undamped(scene: Scene, what: str) -> None:
         )
 
 
+def _check_scene(scene: object) -> None:
+    if not isinstance(scene, Scene):
+        got = type(scene).__name__
+        raise TypeError(f"scene: must be a tasks.Scene, e.g. Scene('ground', 2), got a {got}")
+
+
 def _check_method(method: str) -> None:
     if method not in METHODS:
         raise ValueError(f"method: must be one of {METHODS}, got {method!r}")
@@ -467,6 +473,7 @@ def continuous_bound(scene: Scene, r: ArrayLike, method: str = "paper") -> np.nd
         Same shape as ``r``; finite and >= 0 (limits at the poles, see the module
         notes).
     """
+    _check_scene(scene)
     _check_method(method)
     r_arr = _as_r(r)
     if scene.damped:  # docs/structures.md 3.2
@@ -505,6 +512,7 @@ def motion_bound(scene: Scene, r: ArrayLike) -> np.ndarray:
         within :data:`SNAP_ULPS` ulp of one of its eigenvalues with non-zero
         residue).
     """
+    _check_scene(scene)
     r_arr = _as_r(r)
     if scene.damped:  # docs/structures.md 3.1
         return damped.motion_bound(scene, r_arr)

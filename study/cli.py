@@ -1,8 +1,21 @@
 """Command line: ``study run | plan | report | bench | examples`` (also ``python -m study``).
 
-Exit codes: 0 success, 1 a chunk failed, 2 bad input (one line on stderr,
-nothing written), 130 interrupted by Ctrl-C (SIGINT) and 143 stopped by SIGTERM
-(e.g. a batch job's time limit): finished chunks are kept, rerun to resume.
+The synopsis (:data:`SYNOPSIS`, also printed by ``study --help``; a test checks
+that it lists every option of every command)::
+
+    study run STUDY.toml [-o OUT.nc] [--workers N] [--scheduler ADDRESS | --scheduler-file FILE]
+              [--fidelity NAME] [--retries N] [--worker-timeout SECONDS]
+              [--scheduler-timeout SECONDS] [--overwrite] [--quiet]
+    study plan STUDY.toml [--fidelity NAME] [--workers N] [--calibrate]
+    study report RESULT.nc -o DIR [--overwrite]
+    study bench -o DIR [--quick]
+    study examples [NAME [-o FILE]]
+
+Exit codes: 0 success, 1 a chunk failed or the cluster stopped answering
+(``--worker-timeout``, ``--scheduler-timeout``), 2 bad input (one line on
+stderr, nothing written), 130 interrupted by Ctrl-C (SIGINT) and 143 stopped by
+SIGTERM (e.g. a batch job's time limit): finished chunks are kept, rerun to
+resume. Timeouts and limits: ``docs/limits.md``.
 """
 
 from __future__ import annotations
@@ -14,8 +27,14 @@ import signal
 import sys
 from pathlib import Path
 
+from study.connect import DEFAULT_SCHEDULER_TIMEOUT
 from study.errors import StudyError, StudyFailed, StudyInterrupted
 from study.watchdog import DEFAULT_WORKER_TIMEOUT
+
+#: Every command and option, as ``study --help`` prints it.
+SYNOPSIS = "\n".join(
+    line[4:] for line in __doc__.split("::\n\n", 1)[1].split("\n\n", 1)[0].splitlines()
+)
 
 EXIT_FAILED = 1
 EXIT_BAD_INPUT = 2
@@ -50,10 +69,23 @@ def _positive_int(text: str) -> int:
     return value
 
 
+def _study_options(parser: argparse.ArgumentParser, workers_help: str) -> None:
+    """``--workers N`` and ``--fidelity NAME`` (``run`` and ``plan``)."""
+    parser.add_argument("--workers", type=_positive_int, metavar="N", help=workers_help)
+    parser.add_argument("--fidelity", metavar="NAME", help="override the study's fidelity preset")
+
+
 def build_parser() -> argparse.ArgumentParser:
     from frictionregimes import __version__
 
-    parser = _Parser(prog="study", description=__doc__.splitlines()[0])
+    parser = _Parser(
+        prog="study",
+        description="Classify the regimes of friction-damped chains: studies on Dask.",
+        epilog="synopsis:\n"
+        + "\n".join("  " + ln for ln in SYNOPSIS.splitlines())
+        + "\n\nexit codes: 0 done, 1 failed (work kept), 2 bad input, 130/143 interrupted",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     parser.add_argument(
         "--version", action="version", version=f"study (frictionregimes) {__version__}"
     )
@@ -61,24 +93,33 @@ def build_parser() -> argparse.ArgumentParser:
 
     run = sub.add_parser("run", help="compute a study and write one netCDF file")
     run.add_argument("study", type=Path, help="study file (TOML)")
-    run.add_argument("-o", "--output", type=Path, help="result file (default: STUDY_NAME.nc)")
+    run.add_argument(
+        "-o", "--output", type=Path, metavar="OUT.nc", help="result file (default: NAME.nc)"
+    )
     where = run.add_mutually_exclusive_group()
     where.add_argument("--scheduler", metavar="ADDRESS", help="address of a running scheduler")
     where.add_argument("--scheduler-file", metavar="FILE", help="scheduler file of a running one")
-    run.add_argument(
-        "--workers",
-        type=_positive_int,
-        metavar="N",
-        help="local worker processes (default: one per core); with --scheduler: wait for N workers",
+    _study_options(
+        run, "local worker processes (default: one per core); with --scheduler: wait for N workers"
     )
-    run.add_argument("--fidelity", help="override the study's fidelity preset")
-    run.add_argument("--retries", type=int, default=3, help="retries of a failing task (0-100)")
+    run.add_argument(
+        "--retries", type=int, default=3, metavar="N", help="retries of a failing task (0-100)"
+    )
     run.add_argument(
         "--worker-timeout",
         type=float,
         default=DEFAULT_WORKER_TIMEOUT,
         metavar="SECONDS",
-        help="stop (exit 1, work kept) after this long without any worker (default: 300)",
+        help="stop (exit 1, work kept) after this long without any live worker: none "
+        f"connected, or all stopped answering (default: {DEFAULT_WORKER_TIMEOUT:g})",
+    )
+    run.add_argument(
+        "--scheduler-timeout",
+        type=float,
+        default=DEFAULT_SCHEDULER_TIMEOUT,
+        metavar="SECONDS",
+        help="longest wait for the scheduler to answer: connecting (exit 2) and during the "
+        f"run (exit 1, work kept) (default: {DEFAULT_SCHEDULER_TIMEOUT:g})",
     )
     run.add_argument("--quiet", action="store_true", help="no progress display")
     run.add_argument(
@@ -86,9 +127,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
 
     pl = sub.add_parser("plan", help="points, tasks and estimated time, without running")
-    pl.add_argument("study", type=Path)
-    pl.add_argument("--fidelity")
-    pl.add_argument("--workers", type=_positive_int, metavar="N")
+    pl.add_argument("study", type=Path, help="study file (TOML)")
+    _study_options(pl, "workers the wall time is estimated for (default: one per core)")
     pl.add_argument(
         "--calibrate",
         action="store_true",
@@ -96,15 +136,27 @@ def build_parser() -> argparse.ArgumentParser:
     )
 
     rep = sub.add_parser("report", help="write the analysis report of a result file")
-    rep.add_argument("result", type=Path)
-    rep.add_argument("-o", "--output", type=Path, required=True, metavar="DIR")
+    rep.add_argument("result", type=Path, help="result file of study run (netCDF)")
+    rep.add_argument(
+        "-o",
+        "--output",
+        type=Path,
+        required=True,
+        metavar="DIR",
+        help="folder for report.md and its figures (created; an earlier report in it is replaced)",
+    )
+    rep.add_argument(
+        "--overwrite", action="store_true", help="replace a file (not a folder) found at DIR"
+    )
 
     bench = sub.add_parser(
         "bench",
         help="time and accuracy of every fidelity preset and of the paper's method "
         "(bench.md, pareto.png)",
     )
-    bench.add_argument("-o", "--output", type=Path, required=True, metavar="DIR")
+    bench.add_argument(
+        "-o", "--output", type=Path, required=True, metavar="DIR", help="folder for the tables"
+    )
     bench.add_argument("--quick", action="store_true", help="a smaller point set (~15 s)")
 
     ex = sub.add_parser(
@@ -138,6 +190,7 @@ def cmd_run(args) -> int:
         workers=args.workers,
         retries=args.retries,
         worker_timeout=args.worker_timeout,
+        scheduler_timeout=args.scheduler_timeout,
         progress=not args.quiet,
         command=command,
         overwrite=args.overwrite,
@@ -189,12 +242,54 @@ def cmd_plan(args) -> int:
     return 0
 
 
+#: First bytes of a netCDF file: HDF5 (netCDF4) or classic netCDF.
+_NETCDF_MAGIC = (b"\x89HDF\r\n\x1a\n", b"CDF\x01", b"CDF\x02", b"CDF\x05")
+
+
+def _check_result_file(path: Path) -> None:
+    """A regular, readable netCDF file (looked at before anything is created)."""
+    if not path.exists():
+        raise StudyError("result", f"no such file: {path}")
+    if not path.is_file():
+        raise StudyError("result", f"not a regular file: {path}")
+    try:
+        with path.open("rb") as f:
+            head = f.read(8)
+    except OSError as exc:
+        raise StudyError("result", f"cannot read {path}: {exc.strerror}") from None
+    if not head.startswith(_NETCDF_MAGIC):
+        hint = f" (a study file: run it first, study run {path})" if path.suffix == ".toml" else ""
+        raise StudyError("result", f"{path} is not a result file of study run (netCDF){hint}")
+
+
 def cmd_report(args) -> int:
-    if not args.result.is_file():
-        raise StudyError("result", f"no such file: {args.result}")
+    """``study report RESULT -o DIR``: check both, then write; say what was written."""
+    import shutil
+    import time
+
+    _check_result_file(args.result)
+    out: Path = args.output
+    if out.exists() and not out.is_dir():
+        if not args.overwrite:
+            raise StudyError("-o", f"{out} exists and is not a folder; --overwrite replaces it")
+        out.unlink()
+    if not out.parent.is_dir():
+        raise StudyError("-o", f"parent folder does not exist: {out.parent}")
     from analysis.report import write_report
 
-    write_report(args.result, args.output)
+    created = not out.exists()
+    t0 = time.time()
+    try:
+        path = write_report(args.result, out)
+    except (OSError, ValueError, KeyError, TypeError, IndexError) as exc:
+        if created:
+            shutil.rmtree(out, ignore_errors=True)
+        text = " ".join(str(exc).split())[:200]
+        raise StudyError(
+            "result", f"cannot report on {args.result}: {type(exc).__name__}: {text}"
+        ) from None
+    figures = [p for p in out.glob("*.png") if p.stat().st_mtime >= t0 - 1]
+    print(f"study: wrote {path} and {len(figures)} figures in {out}", file=sys.stderr)
     return 0
 
 

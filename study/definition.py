@@ -19,28 +19,56 @@ one fidelity with optional solver-setting overrides (``tasks.fidelity``)::
     r = {start = 0.05, stop = 2.5, num = 40}
     beta = {start = 0.0, stop = 1.0, num = 25}
 
-Every rule broken raises :class:`~study.errors.StudyError` naming the field,
-e.g. ``scene[0].r.num: must be an integer >= 1, got -3`` (scenes count from 0
-in file order). See README "Study files".
+One validation for every door: :class:`Study`, :class:`SceneSpec`,
+:class:`~study.axes.Axis` and :class:`~study.axes.Points` check their fields
+when they are built (``__post_init__``), whether from a study file
+(:meth:`Study.from_toml`), plain data (:meth:`Study.from_dict`) or Python, and
+against the limits of :mod:`study.limits` before any axis is materialised.
+numpy integer and float scalars are accepted wherever Python ones are; bools
+are never numbers (:mod:`study.fields`). Every rule broken raises
+:class:`~study.errors.StudyError` (a ``ValueError``) naming the field in one
+line, e.g. ``scene[0].r.num: must be an integer >= 1, got -3`` (scenes count
+from 0 in file order; a scene built alone names its own fields, ``r.num``).
+See README "Study files" and ``docs/limits.md``.
 """
 
 from __future__ import annotations
 
 import json
 import math
+import os
 import re
+import stat
 import tomllib
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
+from dataclasses import fields as dataclass_fields
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from study import fields
+from study.axes import SPACINGS, Axis, Points
 from study.errors import StudyError, field_error
-from study.limits import check_study
+from study.fields import show as _show
+from study.fields import within
+from study.limits import (
+    BETA_MAX,
+    MAX_CHUNK_POINTS,
+    MAX_POINTS_CAP,
+    MAX_STUDY_BYTES,
+    R_RANGE,
+    RATIO_RANGE,
+    TASK_SECONDS_RANGE,
+    check_name,
+    check_range,
+    check_size,
+)
 from tasks.fidelity import PRESETS, Settings, resolve
 from tasks.scene import Scene
+
+__all__ = ["ADAPTIVE_HINTS", "MODES", "SPACINGS", "Axis", "Points", "SceneSpec", "Study"]
 
 #: Default limit on the number of points of one study (``[study] max_points``).
 DEFAULT_MAX_POINTS = 50_000_000
@@ -49,22 +77,25 @@ DEFAULT_TASK_SECONDS = 0.5
 MODES = ("grid", "trace", "adaptive")
 #: Closed-form hints an adaptive scene can refine around (``analysis.boundaries`` methods).
 ADAPTIVE_HINTS = ("exact", "paper", "none")
-SPACINGS = ("linear", "log")
+#: Settings of ``mode = "adaptive"`` only.
+ADAPTIVE_KEYS = ("coarse_step", "verify_fraction", "hint")
+_AXIS_KEYS = ("start", "stop", "num", "spacing", "values")
+_POINT_KEYS = ("r", "beta", "gamma", "kappa")
 _NAME_RE = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.-]*$")
+_NAME_RULE = "a string of letters, digits, '_', '.', '-' (a file and netCDF group name)"
+
+
+def _name(v: object, field_: str) -> str:
+    """A study or scene name: :data:`_NAME_RULE`, at most ``MAX_NAME`` characters."""
+    if not isinstance(v, str) or not _NAME_RE.match(v):
+        raise StudyError(field_, f"must be {_NAME_RULE}, got {_show(v)}")
+    check_name(v, field_)
+    return str(v)
 
 
 # --------------------------------------------------------------------------- reading helpers
-def _is_number(v: object) -> bool:
-    return isinstance(v, int | float) and not isinstance(v, bool)
-
-
-def _show(v: object) -> str:
-    s = repr(v)
-    return s if len(s) <= 60 else s[:57] + "..."
-
-
 class _Table:
-    """Read the keys of one TOML table, then reject any key left over."""
+    """The keys of one TOML table: read them, then reject any key left over."""
 
     def __init__(self, data: object, path: str) -> None:
         if not isinstance(data, Mapping):
@@ -83,182 +114,96 @@ class _Table:
         self.used.add(key)
         return self.data.get(key, default)
 
-    def string(self, key: str, default: str | None = None, choices: Sequence[str] = ()) -> str:
-        v = self.get(key, default)
-        if v is None:
-            raise StudyError(self.at(key), "is required")
-        if not isinstance(v, str):
-            raise StudyError(self.at(key), f"must be a string, got {_show(v)}")
-        if choices and v not in choices:
-            raise StudyError(self.at(key), f"must be one of {tuple(choices)}, got {v!r}")
-        return v
-
-    def integer(self, key: str, default: int | None = None, minimum: int | None = None) -> int:
-        v = self.get(key, default)
-        rule = "an integer" + (f" >= {minimum}" if minimum is not None else "")
-        if v is None:
-            raise StudyError(self.at(key), f"is required ({rule})")
-        if not isinstance(v, int) or isinstance(v, bool) or (minimum is not None and v < minimum):
-            raise StudyError(self.at(key), f"must be {rule}, got {_show(v)}")
-        return v
-
-    def number(self, key: str, default: float | None = None, positive: bool = False) -> float:
-        v = self.get(key, default)
-        rule = "a positive finite number" if positive else "a finite number"
-        if v is None:
-            raise StudyError(self.at(key), f"is required ({rule})")
-        if not _is_number(v) or not math.isfinite(v) or (positive and v <= 0):
-            raise StudyError(self.at(key), f"must be {rule}, got {_show(v)}")
-        return float(v)
+    def given(self, keys) -> dict[str, object]:
+        """The keys of ``keys`` present in the table, with their values."""
+        return {k: self.get(k) for k in keys if self.has(k)}
 
     def finish(self) -> None:
         unknown = [k for k in self.data if k not in self.used]
         if unknown:
             known = ", ".join(sorted(self.used))
-            raise StudyError(self.at(unknown[0]), f"unknown key (known keys here: {known})")
+            raise StudyError(self.at(str(unknown[0])), f"unknown key (known keys here: {known})")
 
 
-# --------------------------------------------------------------------------- axes and sweeps
-@dataclass(frozen=True)
-class Axis:
-    """One coordinate axis: explicit ``values`` or ``num`` points from ``start`` to ``stop``.
+def _unknown_key(raw: Mapping, known: tuple[str, ...]) -> None:
+    for k in raw:
+        if k not in known:
+            raise StudyError(str(k), f"unknown key (known keys here: {', '.join(known)})")
 
-    ``spacing="log"`` spaces the points geometrically (``numpy.geomspace``).
-    Values are materialised only by :meth:`values_array`, so a huge axis costs
-    nothing to describe.
+
+def as_axis(raw: object, lower: float | None = None, strict: bool = False) -> Axis:
+    """An :class:`Axis` from an Axis, a number, a list of values or a table of its fields.
+
+    With ``lower``, every value must be ``> lower`` (``strict``) or ``>= lower``;
+    explicit values are checked in order, so the first bad one is named.
     """
-
-    start: float | None = None
-    stop: float | None = None
-    num: int | None = None
-    spacing: str = "linear"
-    values: tuple[float, ...] | None = None
-
-    def __len__(self) -> int:
-        return len(self.values) if self.values is not None else int(self.num)
-
-    def values_array(self) -> np.ndarray:
-        """The axis values; generated values are rounded to 15 significant digits.
-
-        ``linspace(0, 1.2, 25)`` gives ``0.9999999999999999`` where the user
-        wrote a grid of steps 0.05; rounding puts such values on the decimal
-        numbers meant (here exactly 1.0, which matters on a boundary such as
-        beta = 1, the motion bound of a ground contact on m_1).
-        """
-        if self.values is not None:
-            return np.asarray(self.values, dtype=np.float64)
-        if self.num == 1:
-            return np.array([self.start], dtype=np.float64)
-        make = np.geomspace if self.spacing == "log" else np.linspace
-        raw = make(self.start, self.stop, self.num, dtype=np.float64)
-        return np.array([float(f"{v:.15g}") for v in raw], dtype=np.float64)
-
-    def to_toml_value(self) -> dict[str, object]:
-        if self.values is not None:
-            return {"values": list(self.values)}
-        return {"start": self.start, "stop": self.stop, "num": self.num, "spacing": self.spacing}
+    if isinstance(raw, Axis):
+        axis = raw
+    elif isinstance(raw, Mapping | list | tuple | np.ndarray) or fields.is_number(raw):
+        if fields.is_number(raw):
+            raw = {"values": (raw,)}
+        elif not isinstance(raw, Mapping):
+            raw = {"values": raw}
+        _unknown_key(raw, _AXIS_KEYS)
+        values = raw.get("values")
+        if lower is not None and fields.is_list(values):
+            for i, v in enumerate(values):
+                fields.number(v, f"values[{i}]", lower, strict)
+        axis = Axis(**raw)
+    else:
+        raise StudyError(
+            "",
+            "must be a number, a list or an axis {start, stop, num} or {values}, "
+            f"got {_show(raw)}",
+        )
+    if lower is not None:
+        axis.check_bound(lower, strict)
+    return axis
 
 
-def _finite_values(raw: object, path: str, lower: float, strict: bool, what: str) -> list[float]:
-    if not isinstance(raw, list) or not raw:
-        raise StudyError(path, f"must be a non-empty list of numbers, got {_show(raw)}")
-    out = []
-    for i, v in enumerate(raw):
-        ok = _is_number(v) and math.isfinite(v) and (v > lower if strict else v >= lower)
-        if not ok:
-            raise StudyError(f"{path}[{i}]", f"must be {what}, got {_show(v)}")
-        out.append(float(v))
-    return out
+def as_points(raw: object) -> Points:
+    """:class:`Points` from Points, ``[[r, beta], ...]`` or a table of columns."""
+    if isinstance(raw, Points):
+        return raw
+    if isinstance(raw, Mapping):
+        _unknown_key(raw, _POINT_KEYS)
+        return Points(**{k: raw.get(k) for k in _POINT_KEYS})
+    if not fields.is_list(raw):
+        raise StudyError(
+            "", f"must be a list of [r, beta] pairs or a table of columns, got {_show(raw)}"
+        )
+    if len(raw) == 0:
+        raise StudyError("", "must not be empty")
+    check_size(len(raw), "")
+    rs, bs = [], []
+    for i, p in enumerate(raw):
+        if not fields.is_list(p) or len(p) != 2:
+            raise StudyError(f"[{i}]", f"must be a pair [r, beta], got {_show(p)}")
+        rs.append(fields.number(p[0], f"[{i}][0]", 0.0, strict=True))
+        bs.append(fields.number(p[1], f"[{i}][1]", 0.0))
+    return Points(tuple(rs), tuple(bs))
 
 
-def _read_axis(raw: object, path: str, lower: float, strict: bool) -> Axis:
-    """Parse an axis given as ``{start, stop, num, spacing}``, ``{values}``, a list or a number."""
-    what = f"a finite number {'>' if strict else '>='} {lower:g}"
-    if _is_number(raw):
-        raw = [raw]
-    if isinstance(raw, list):
-        raw = {"values": raw}
-    t = _Table(raw, path)
-    if t.has("values"):
-        if any(t.has(k) for k in ("start", "stop", "num", "spacing")):
-            raise StudyError(path, "give either values or start/stop/num, not both")
-        vals = _finite_values(t.get("values"), t.at("values"), lower, strict, what)
-        if any(b <= a for a, b in zip(vals, vals[1:], strict=False)):
-            raise StudyError(t.at("values"), "must be strictly increasing")
-        t.finish()
-        return Axis(values=tuple(vals))
-    if not t.has("start") and not t.has("stop") and not t.has("num"):
-        raise StudyError(path, "needs start, stop and num, or values")
-    start = t.number("start")
-    if not (start > lower if strict else start >= lower):
-        raise StudyError(t.at("start"), f"must be {what}, got {start:g}")
-    num = t.integer("num", minimum=1)
-    stop = t.number("stop", default=start if num == 1 else None)
-    spacing = t.string("spacing", "linear", SPACINGS)
-    t.finish()
-    if num > 1 and not stop > start:
-        raise StudyError(t.at("stop"), f"must be > start ({start:g}), got {stop:g}")
-    if spacing == "log" and start <= 0:
-        raise StudyError(t.at("start"), f"must be > 0 for log spacing, got {start:g}")
-    return Axis(start=start, stop=stop, num=num, spacing=spacing)
-
-
-@dataclass(frozen=True)
-class Points:
-    """An explicit list of (r, beta) points, optionally with a uniform gamma/kappa per point."""
-
-    r: tuple[float, ...]
-    beta: tuple[float, ...]
-    gamma: tuple[float, ...] | None = None
-    kappa: tuple[float, ...] | None = None
-
-    def __len__(self) -> int:
-        return len(self.r)
-
-    def columns(self) -> dict[str, np.ndarray]:
-        cols = {"r": self.r, "beta": self.beta, "gamma": self.gamma, "kappa": self.kappa}
-        return {k: np.asarray(v, dtype=np.float64) for k, v in cols.items() if v is not None}
-
-    def to_toml_value(self) -> object:
-        if self.gamma is None and self.kappa is None:
-            return [[a, b] for a, b in zip(self.r, self.beta, strict=True)]
-        return {k: list(v) for k, v in self.columns().items()}
-
-
-def _read_points(raw: object, path: str, dof: int) -> Points:
-    """``[[r, beta], ...]`` or a table of columns ``{r=[...], beta=[...], gamma=[...]}``."""
-    rule_r, rule_b = "a finite number > 0", "a finite number >= 0"
-    if isinstance(raw, list):
-        if not raw:
-            raise StudyError(path, "must not be empty")
-        rs, bs = [], []
-        for i, p in enumerate(raw):
-            if not isinstance(p, list) or len(p) != 2:
-                raise StudyError(f"{path}[{i}]", f"must be a pair [r, beta], got {_show(p)}")
-            r, b = p
-            if not (_is_number(r) and math.isfinite(r) and r > 0):
-                raise StudyError(f"{path}[{i}][0]", f"r must be {rule_r}, got {_show(r)}")
-            if not (_is_number(b) and math.isfinite(b) and b >= 0):
-                raise StudyError(f"{path}[{i}][1]", f"beta must be {rule_b}, got {_show(b)}")
-            rs.append(float(r))
-            bs.append(float(b))
-        return Points(tuple(rs), tuple(bs))
-    t = _Table(raw, path)
-    r = _finite_values(t.get("r"), t.at("r"), 0.0, True, rule_r)
-    b = _finite_values(t.get("beta"), t.at("beta"), 0.0, False, rule_b)
-    extra = {}
-    for name in ("gamma", "kappa"):
-        if t.has(name):
-            if dof < 2:
-                raise StudyError(t.at(name), "dof 1 has no mass or stiffness ratios")
-            extra[name] = tuple(
-                _finite_values(t.get(name), t.at(name), 0.0, True, "a positive finite number")
+def _ratio(raw: object, key: str, dof: int) -> float | tuple[float, ...] | Axis:
+    """A fixed ratio (one number, or dof - 1 numbers) or a sweep (an :class:`Axis`)."""
+    if isinstance(raw, Axis | Mapping):
+        if dof < 2:
+            raise StudyError(key, "dof 1 has no mass or stiffness ratios to sweep")
+        with within(key):
+            axis = as_axis(raw, 0.0, strict=True)
+        check_range(axis.ends, key, *RATIO_RANGE, f"every {key}")
+        return axis
+    if fields.is_number(raw):
+        return fields.number(raw, key, 0.0, strict=True)
+    if fields.is_list(raw):
+        if len(raw) != dof - 1:
+            raise StudyError(
+                key,
+                f"a list gives the ratios of masses/springs 2..{dof}, so it needs dof - 1 = "
+                f"{dof - 1} entries, got {len(raw)} (to sweep, write {{values = [...]}})",
             )
-    t.finish()
-    for name, col in (("beta", b), *extra.items()):
-        if len(col) != len(r):
-            raise StudyError(t.at(name), f"has {len(col)} entries, but r has {len(r)}")
-    return Points(tuple(r), tuple(b), extra.get("gamma"), extra.get("kappa"))
+        return fields.numbers(raw, key, 0.0, strict=True)
+    raise StudyError(key, f"must be a number, a list or a sweep (Axis), got {_show(raw)}")
 
 
 # --------------------------------------------------------------------------- scenes
@@ -269,7 +214,19 @@ class SceneSpec:
     ``gamma``/``kappa`` are either fixed (a number, or one number per mass
     2..N, as in :class:`tasks.Scene`) or an :class:`Axis` *sweep*: a swept
     value sets every ratio 2..N to that value and becomes a dimension of the
-    result. Exactly one of (``r`` and ``beta``) or ``points`` is given.
+    result. Exactly one of (``r`` and ``beta``) or ``points`` is given; ``r``
+    and ``beta`` may be an :class:`Axis`, a number or a list of values,
+    ``points`` a :class:`Points`, a list of ``[r, beta]`` pairs or a table of
+    columns. An empty ``name`` becomes the scene's label (``2dof_ground_m1``).
+
+    Every field is checked on construction (types, ``tasks.Scene``'s rules,
+    :mod:`study.limits`), before any axis is materialised.
+
+    Raises
+    ------
+    StudyError
+        Naming the field, e.g. ``mode: must be one of ('grid', 'trace', 'adaptive'),
+        got 'bogus'``; inside a study file prefixed by the scene, ``scene[0].mode``.
     """
 
     name: str
@@ -288,6 +245,70 @@ class SceneSpec:
     coarse_step: int = 16
     verify_fraction: float = 0.005
     hint: str = "exact"
+
+    def __post_init__(self) -> None:
+        def put(key: str, value: object) -> None:
+            object.__setattr__(self, key, value)
+
+        put("contact", fields.string(self.contact, "contact"))
+        dof = fields.integer(self.dof, "dof", minimum=1)
+        put("dof", dof)
+        put("contact_mass", fields.integer(self.contact_mass, "contact_mass"))
+        put("gamma", _ratio(self.gamma, "gamma", dof))
+        put("kappa", _ratio(self.kappa, "kappa", dof))
+        mode = fields.string(self.mode, "mode", MODES)
+        put("coarse_step", fields.integer(self.coarse_step, "coarse_step", minimum=1))
+        fraction = fields.number(self.verify_fraction, "verify_fraction")
+        if not 0.0 <= fraction <= 1.0:
+            raise StudyError("verify_fraction", f"must be in [0, 1], got {fraction:g}")
+        put("verify_fraction", fraction)
+        put("hint", fields.string(self.hint, "hint", ADAPTIVE_HINTS))
+        if self.points is not None:
+            self._check_points(mode, dof)
+        else:
+            bounds = {"r": (True, R_RANGE), "beta": (False, (0.0, BETA_MAX))}
+            for key, (strict, (lo, hi)) in bounds.items():
+                raw = getattr(self, key)
+                if raw is None:
+                    raise StudyError(key, "is required (or give points = [[r, beta], ...])")
+                with within(key):
+                    axis = as_axis(raw, 0.0, strict)
+                check_range(axis.ends, key, lo, hi, f"every {key}")
+                put(key, axis)
+            if mode == "trace" and len(self.beta) < 2:
+                raise StudyError(
+                    "beta",
+                    "a traced scene needs a beta range of at least 2 values (the bisection "
+                    f"tolerance is half the beta step), got {len(self.beta)}",
+                )
+        try:  # tasks.Scene checks contact, dof, contact_mass and the fixed ratios' range
+            base = self.base_scene
+        except ValueError as exc:
+            raise field_error("", exc) from None
+        unnamed = self.name is None or (isinstance(self.name, str) and not self.name)
+        put("name", base.label if unnamed else _name(self.name, "name"))
+
+    def _check_points(self, mode: str, dof: int) -> None:
+        grid = [k for k in ("r", "beta") if getattr(self, k) is not None]
+        if grid:
+            raise StudyError(
+                "points",
+                f"give either r and beta grids or points, not both ({grid[0]} is also given)",
+            )
+        if mode in ("trace", "adaptive"):
+            raise StudyError("points", f"mode {mode!r} needs r and beta axes, not a point list")
+        with within("points"):
+            points = as_points(self.points)
+        for k in ("gamma", "kappa"):
+            if getattr(points, k) is not None and dof < 2:
+                raise StudyError(f"points.{k}", "dof 1 has no mass or stiffness ratios")
+            if isinstance(getattr(self, k), Axis):
+                raise StudyError(
+                    k,
+                    "a sweep cannot be combined with points; give per-point values in a "
+                    "points table {r = [...], beta = [...], " + k + " = [...]}",
+                )
+        object.__setattr__(self, "points", points)
 
     # ------------------------------------------------------------ derived views
     @property
@@ -320,7 +341,7 @@ class SceneSpec:
     @property
     def base_scene(self) -> Scene:
         """The scene with each sweep at its first value (for labels and checks)."""
-        return self.scene_at(**{k: float(a.values_array()[0]) for k, a in self.sweeps.items()})
+        return self.scene_at(**{k: a.first for k, a in self.sweeps.items()})
 
     def scene_attr(self) -> dict[str, object]:
         """``Scene.to_dict()`` with each swept field given as its list of values."""
@@ -357,123 +378,121 @@ class SceneSpec:
         return d
 
 
-def _read_ratio(t: _Table, key: str, dof: int) -> float | tuple[float, ...] | Axis:
-    raw = t.get(key, 1.0)
-    path = t.at(key)
-    if isinstance(raw, Mapping):
-        if dof < 2:
-            raise StudyError(path, "dof 1 has no mass or stiffness ratios to sweep")
-        return _read_axis(raw, path, 0.0, True)
-    if _is_number(raw):
-        if not (math.isfinite(raw) and raw > 0):
-            raise StudyError(path, f"must be a positive finite number, got {_show(raw)}")
-        return float(raw)
-    if isinstance(raw, list):
-        vals = _finite_values(raw, path, 0.0, True, "a positive finite number")
-        if len(vals) != dof - 1:
-            raise StudyError(
-                path,
-                f"a list gives the ratios of masses/springs 2..{dof}, so it needs dof - 1 = "
-                f"{dof - 1} entries, got {len(vals)} (to sweep, write {{values = [...]}})",
-            )
-        return tuple(vals)
-    raise StudyError(path, f"must be a number, a list or a sweep table, got {_show(raw)}")
-
-
-def _read_adaptive(t: _Table, mode: str) -> dict[str, object]:
-    """The settings of ``mode = "adaptive"`` (refused with any other mode)."""
-    keys = ("coarse_step", "verify_fraction", "hint")
-    if mode != "adaptive":
-        for k in keys:
-            if t.has(k):
-                raise StudyError(t.at(k), f"applies to mode = 'adaptive' only (mode is {mode!r})")
-        return {}
-    out: dict[str, object] = {"coarse_step": t.integer("coarse_step", 16, minimum=1)}
-    fraction = t.number("verify_fraction", 0.005)
-    if not 0.0 <= fraction <= 1.0:
-        raise StudyError(t.at("verify_fraction"), f"must be in [0, 1], got {fraction:g}")
-    out["verify_fraction"] = fraction
-    out["hint"] = t.string("hint", "exact", ADAPTIVE_HINTS)
-    return out
+_SCENE_KEYS = tuple(f.name for f in dataclass_fields(SceneSpec))
 
 
 def _read_scene(raw: object, path: str) -> SceneSpec:
+    """One ``[[scene]]`` table; errors are prefixed with ``path`` (``scene[0]``)."""
     t = _Table(raw, path)
-    contact = t.string("contact")
-    dof = t.integer("dof", minimum=1)
-    contact_mass = t.integer("contact_mass", 1)
-    gamma = _read_ratio(t, "gamma", dof)
-    kappa = _read_ratio(t, "kappa", dof)
-    mode = t.string("mode", "grid", MODES)
-    adaptive = _read_adaptive(t, mode)
-    name = t.get("name")
-    if name is not None and (not isinstance(name, str) or not _NAME_RE.match(name)):
-        raise StudyError(
-            t.at("name"),
-            f"must be a string of letters, digits, '_', '.', '-' (a netCDF group name), "
-            f"got {_show(name)}",
-        )
-    grid = [k for k in ("r", "beta") if t.has(k)]
-    points = None
-    r_axis = beta_axis = None
-    if t.has("points"):
-        if grid:
-            raise StudyError(
-                t.at("points"),
-                f"give either r and beta grids or points, not both ({grid[0]} is also given)",
-            )
-        if mode in ("trace", "adaptive"):
-            raise StudyError(
-                t.at("points"), f"mode {mode!r} needs r and beta axes, not a point list"
-            )
-        points = _read_points(t.get("points"), t.at("points"), dof)
-        for k, v in (("gamma", gamma), ("kappa", kappa)):
-            if isinstance(v, Axis):
-                raise StudyError(
-                    t.at(k),
-                    "a sweep cannot be combined with points; give per-point values in a "
-                    "points table {r = [...], beta = [...], " + k + " = [...]}",
-                )
-    else:
-        for k in ("r", "beta"):
-            if not t.has(k):
-                raise StudyError(t.at(k), "is required (or give points = [[r, beta], ...])")
-        r_axis = _read_axis(t.get("r"), t.at("r"), 0.0, True)
-        beta_axis = _read_axis(t.get("beta"), t.at("beta"), 0.0, False)
+    kw = t.given(_SCENE_KEYS)
     t.finish()
-    spec = SceneSpec(
-        name=name or "",
-        contact=contact,
-        dof=dof,
-        contact_mass=contact_mass,
-        gamma=gamma,
-        kappa=kappa,
-        r=r_axis,
-        beta=beta_axis,
-        points=points,
-        mode=mode,
-        **adaptive,
-    )
-    try:  # tasks.Scene checks contact, dof and contact_mass
-        base = spec.base_scene
-    except ValueError as exc:
-        raise field_error(path, exc) from None
-    if points is not None:
+    mode = kw.get("mode", "grid")
+    if mode != "adaptive":
+        for k in ADAPTIVE_KEYS:
+            if k in kw:
+                raise StudyError(t.at(k), f"applies to mode = 'adaptive' only (mode is {mode!r})")
+    with within(path):
+        spec = SceneSpec(
+            name=kw.pop("name", ""),
+            contact=kw.pop("contact", None),
+            dof=kw.pop("dof", None),
+            **kw,
+        )
+    if spec.points is not None:
         for k in ("gamma", "kappa"):
-            if getattr(points, k) is not None and t.has(k):
+            if getattr(spec.points, k) is not None and t.has(k):
                 raise StudyError(
                     t.at(k), f"must be omitted when the points table gives per-point {k}"
                 )
-    return replace(spec, name=name or base.label)
+    return spec
 
 
 # --------------------------------------------------------------------------- the study
+def _kind(mode: int) -> str:
+    """What a file system entry that is not a regular file is (for the message)."""
+    kinds = {
+        stat.S_IFDIR: "a directory",
+        stat.S_IFIFO: "a FIFO (named pipe)",
+        stat.S_IFCHR: "a character device",
+        stat.S_IFBLK: "a block device",
+        stat.S_IFSOCK: "a socket",
+    }
+    return kinds.get(stat.S_IFMT(mode), "not a regular file")
+
+
+def read_study_text(path: Path) -> str:
+    """The text of a study file: a regular file of at most ``MAX_STUDY_BYTES`` bytes, UTF-8.
+
+    Never blocks and never reads without end: the entry is looked at before it is
+    opened (a FIFO, a device, a directory or a socket is refused), opened without
+    blocking, looked at again (it may have been swapped) and read up to the limit.
+    """
+    where = str(path)
+    try:
+        st = os.stat(path)
+        if not stat.S_ISREG(st.st_mode):
+            raise StudyError(
+                "", f"a study file must be a regular file, this is {_kind(st.st_mode)}", where
+            )
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_NOCTTY", 0))
+    except FileNotFoundError:
+        raise StudyError("", "no such study file", where) from None
+    except OSError as exc:
+        raise StudyError("", f"cannot read the study file: {exc.strerror}", where) from None
+    try:
+        st = os.fstat(fd)
+        if not stat.S_ISREG(st.st_mode):
+            raise StudyError(
+                "", f"a study file must be a regular file, this is {_kind(st.st_mode)}", where
+            )
+        with os.fdopen(os.dup(fd), "rb") as f:
+            data = f.read(MAX_STUDY_BYTES + 1)
+    except OSError as exc:
+        raise StudyError("", f"cannot read the study file: {exc.strerror}", where) from None
+    finally:
+        os.close(fd)
+    if len(data) > MAX_STUDY_BYTES:
+        raise StudyError(
+            "", f"a study file holds at most {MAX_STUDY_BYTES:,} bytes (study.limits)", where
+        )
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise StudyError(
+            "", f"cannot read the study file: not UTF-8 text ({exc.reason})", where
+        ) from None
+
+
+def _overrides(raw: object) -> tuple[tuple[str, Any], ...]:
+    """Setting overrides as ``((name, value), ...)``; numpy scalars become Python ones."""
+    items = list(raw.items()) if isinstance(raw, Mapping) else raw
+    if not fields.is_list(items):
+        raise StudyError(
+            "settings", f"must be a table of setting names and values, got {_show(raw)}"
+        )
+    out = []
+    for pair in items:
+        if not (fields.is_list(pair) and len(pair) == 2 and isinstance(pair[0], str)):
+            raise StudyError("settings", f"must be pairs (name, value), got {_show(pair)}")
+        key, value = pair
+        out.append((str(key), value.item() if isinstance(value, np.generic) else value))
+    return tuple(out)
+
+
 @dataclass(frozen=True)
 class Study:
     """A validated study: scenes, fidelity and solver settings.
 
-    Build it with :meth:`from_toml` or :meth:`from_dict` (both validate), or
-    directly from :class:`SceneSpec` objects and then call :meth:`validated`.
+    Build it with :meth:`from_toml`, :meth:`from_dict` or directly from
+    :class:`SceneSpec` objects: every door validates on construction, with the
+    rules and the one-line errors of a study file (``study.max_points: ...``).
+    ``overrides`` may be given as a mapping of setting names to values.
+
+    Raises
+    ------
+    StudyError
+        Naming the field: a bad name, fidelity, setting or size, a scene that
+        is not a :class:`SceneSpec`, two scenes of one name, too many points.
     """
 
     name: str
@@ -487,18 +506,62 @@ class Study:
     text: str = field(default="", repr=False, compare=False)
     source: str | None = field(default=None, compare=False)
 
+    def __post_init__(self) -> None:
+        def put(key: str, value: object) -> None:
+            object.__setattr__(self, key, value)
+
+        put("name", _name(self.name, "study.name"))
+        put("description", fields.string(self.description, "study.description"))
+        put("fidelity", fields.string(self.fidelity, "study.fidelity", tuple(PRESETS)))
+        put(
+            "max_points",
+            fields.integer(self.max_points, "study.max_points", 1, MAX_POINTS_CAP),
+        )
+        seconds = fields.number(self.task_seconds, "study.task_seconds", 0.0, strict=True)
+        lo, hi = TASK_SECONDS_RANGE
+        if not lo <= seconds <= hi:
+            raise StudyError("study.task_seconds", f"must be in [{lo:g}, {hi:g}], got {seconds:g}")
+        put("task_seconds", seconds)
+        if self.chunk_points is not None:
+            points = fields.integer(self.chunk_points, "study.chunk_points", 1, MAX_CHUNK_POINTS)
+            put("chunk_points", points)
+        put("overrides", _overrides(self.overrides))
+        if not fields.is_list(self.scenes) or len(self.scenes) == 0:
+            raise StudyError(
+                "scene", f"must be a non-empty list of SceneSpec, got {_show(self.scenes)}"
+            )
+        seen: dict[str, int] = {}
+        for i, s in enumerate(self.scenes):
+            if not isinstance(s, SceneSpec):
+                raise StudyError(f"scene[{i}]", f"must be a SceneSpec, got {_show(s)}")
+            if s.name in seen:
+                raise StudyError(
+                    f"scene[{i}].name",
+                    f"duplicate scene name {s.name!r} (also scene[{seen[s.name]}]); "
+                    "give each scene a distinct name",
+                )
+            seen[s.name] = i
+        put("scenes", tuple(self.scenes))
+        if not isinstance(self.text, str):
+            raise StudyError("text", f"must be a string, got {_show(self.text)}")
+        if self.source is not None and not isinstance(self.source, str):
+            raise StudyError("source", f"must be a string or None, got {_show(self.source)}")
+        self.settings  # noqa: B018  (raises a StudyError naming the setting)
+        total = self.n_points
+        if total > self.max_points:
+            raise StudyError(
+                "study.max_points",
+                f"the study has {total:,} points, more than the limit {self.max_points:,}; "
+                "raise study.max_points to allow it",
+            )
+
     # ------------------------------------------------------------ constructors
     @classmethod
-    def from_toml(cls, path: str | Path) -> Study:
-        """Read and validate a study file (``tomllib``)."""
+    def from_toml(cls, path: str | os.PathLike) -> Study:
+        """Read and validate a study file (``tomllib``); see :func:`read_study_text`."""
         path = Path(path)
         source = path.name
-        try:
-            text = path.read_text(encoding="utf-8")
-        except FileNotFoundError:
-            raise StudyError("", "no such study file", str(path)) from None
-        except (OSError, UnicodeDecodeError) as exc:
-            raise StudyError("", f"cannot read the study file: {exc}", str(path)) from None
+        text = read_study_text(path)
         try:
             data = tomllib.loads(text)
         except tomllib.TOMLDecodeError as exc:
@@ -519,24 +582,16 @@ class Study:
         """Validate a study given as plain data (the structure of the TOML file)."""
         try:
             study = cls._parse(data, default_name)
+            return replace(study, text=text if text is not None else study.to_toml(), source=source)
         except StudyError as exc:
             raise exc.with_source(source) from None
-        return replace(study, text=text if text is not None else study.to_toml(), source=source)
 
     @classmethod
     def _parse(cls, data: Mapping[str, object], default_name: str) -> Study:
         top = _Table(data, "")
         head = _Table(top.get("study", {}), "study")
-        name = head.string("name", default_name)
-        if not _NAME_RE.match(name):
-            raise StudyError("study.name", f"must be letters, digits, '_', '.', '-', got {name!r}")
-        description = head.string("description", "")
-        fidelity = head.string("fidelity", "balanced", tuple(PRESETS))
-        max_points = head.integer("max_points", DEFAULT_MAX_POINTS, minimum=1)
-        task_seconds = head.number("task_seconds", DEFAULT_TASK_SECONDS, positive=True)
-        chunk_points = head.get("chunk_points")
-        if chunk_points is not None:
-            chunk_points = head.integer("chunk_points", minimum=1)
+        kw = head.given(("description", "fidelity", "max_points", "task_seconds", "chunk_points"))
+        name = head.get("name", default_name)
         head.finish()
         settings = top.get("settings", {})
         if not isinstance(settings, Mapping):
@@ -548,45 +603,17 @@ class Study:
             raise StudyError("scene", "must be a non-empty array of tables ([[scene]])")
         top.finish()
         scenes = tuple(_read_scene(s, f"scene[{i}]") for i, s in enumerate(raw_scenes))
-        study = cls(
-            name=name,
-            scenes=scenes,
-            description=description,
-            fidelity=fidelity,
-            overrides=tuple(settings.items()),
-            max_points=max_points,
-            task_seconds=task_seconds,
-            chunk_points=chunk_points,
-        )
-        return study.validated()
+        return cls(name=name, scenes=scenes, overrides=tuple(settings.items()), **kw)
 
     def validated(self) -> Study:
-        """Check the whole-study rules (names, settings, size); return ``self``."""
-        check_study(self)  # ranges and sizes the numerics support (study.limits)
-        seen: dict[str, int] = {}
-        for i, s in enumerate(self.scenes):
-            if s.name in seen:
-                raise StudyError(
-                    f"scene[{i}].name",
-                    f"duplicate scene name {s.name!r} (also scene[{seen[s.name]}]); "
-                    "give each scene a distinct name",
-                )
-            seen[s.name] = i
-        self.settings  # noqa: B018  (raises a StudyError naming the setting)
-        total = self.n_points
-        if total > self.max_points:
-            raise StudyError(
-                "study.max_points",
-                f"the study has {total:,} points, more than the limit {self.max_points:,}; "
-                "raise study.max_points to allow it",
-            )
+        """``self``: a study is validated on construction (kept for older callers)."""
         return self
 
     def with_fidelity(self, fidelity: str) -> Study:
         """The same study at another fidelity preset (CLI ``--fidelity``)."""
         if fidelity not in PRESETS:
             raise StudyError("--fidelity", f"must be one of {tuple(PRESETS)}, got {fidelity!r}")
-        return replace(self, fidelity=fidelity).validated()
+        return replace(self, fidelity=fidelity)
 
     # ------------------------------------------------------------ derived
     @property
@@ -608,7 +635,7 @@ class Study:
             if kind is tuple:
                 ok = isinstance(value, list | tuple) and all(isinstance(v, str) for v in value)
             if kind is float:
-                ok = _is_number(value) and math.isfinite(value)
+                ok = fields.is_number(value) and math.isfinite(value)
             if not ok:
                 msg = f"must be {kinds[kind.__name__]}, got {_show(value)}"
                 raise StudyError(f"settings.{key}", msg, self.source)

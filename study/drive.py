@@ -16,13 +16,15 @@ from __future__ import annotations
 
 import time
 from concurrent.futures import CancelledError
+from contextlib import suppress
 from dataclasses import dataclass
 
 from study.compute import compute_chunk
+from study.connect import call_within
 from study.errors import StudyFailed
 from study.plans import WAIT, ScenePlan
 from study.progress import Progress
-from study.watchdog import Watchdog, watched_batches, watched_gather
+from study.watchdog import ASK_TIMEOUT, Watchdog, watched_batches, watched_gather
 
 #: Units kept in flight per worker thread (at least ``MIN_WINDOW`` in all).
 WINDOW_PER_THREAD = 4
@@ -84,8 +86,8 @@ class _Window:
         if now < self.next_look:  # workers come and go (adaptive clusters, lost workers)
             return
         try:
-            threads = sum(self.client.nthreads().values())
-        except OSError:  # the scheduler is unreachable: the watchdog decides
+            threads = sum(call_within(ASK_TIMEOUT, self.client.nthreads).values())
+        except (OSError, TimeoutError):  # unreachable or silent: the watchdog decides
             threads = 0
         self.size = max(MIN_WINDOW, WINDOW_PER_THREAD * threads)
         self.next_look = now + WINDOW_REFRESH
@@ -175,7 +177,8 @@ def drive(
                 win.arrived(fut, arrays)
             win.fill()
     except BaseException:
-        client.cancel([f for f, _, _ in win.inflight.values()])
+        with suppress(TimeoutError):  # bounded: the scheduler may be the one that went silent
+            call_within(ASK_TIMEOUT, client.cancel, [f for f, _, _ in win.inflight.values()])
         raise
     if win.inflight or win.active:  # as_completed ended with work unaccounted for
         p = (win.active or [None])[0]

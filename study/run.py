@@ -23,7 +23,7 @@ import logging
 import os
 import sys
 import time
-from contextlib import contextmanager, nullcontext
+from contextlib import contextmanager, nullcontext, suppress
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TextIO
@@ -31,6 +31,8 @@ from typing import TextIO
 from distributed.diagnostics.plugin import WorkerPlugin
 
 from study.chunks import ScenePlan, plan
+from study.connect import DEFAULT_SCHEDULER_TIMEOUT, call_within, check_timeout
+from study.connect import connect as connect_scheduler
 from study.cost import CostTracker
 from study.definition import Study
 from study.drive import Driven, drive
@@ -111,6 +113,8 @@ def connect(
     scheduler_file: str | None = None,
     workers: int | None = None,
     stream: TextIO = sys.stderr,
+    scheduler_timeout: float = DEFAULT_SCHEDULER_TIMEOUT,
+    worker_timeout: float = DEFAULT_WORKER_TIMEOUT,
 ):
     """A Dask client: the one given, a running scheduler, or a new LocalCluster.
 
@@ -127,16 +131,9 @@ def connect(
     cluster = None
     if scheduler or scheduler_file:
         where = scheduler or scheduler_file
-        flag = "--scheduler" if scheduler else "--scheduler-file"
-        if scheduler_file and not Path(scheduler_file).is_file():
-            raise StudyError(flag, f"no such scheduler file: {scheduler_file}")
-        kw = {"address": scheduler} if scheduler else {"scheduler_file": scheduler_file}
+        client = connect_scheduler(scheduler, scheduler_file, scheduler_timeout)  # bounded
         try:
-            client = Client(**kw, timeout="30s")
-        except (OSError, TimeoutError, ValueError) as exc:
-            raise StudyError(flag, f"cannot connect to {where}: {exc}") from None
-        try:
-            n = len(client.nthreads())
+            n = len(call_within(scheduler_timeout, client.nthreads))
             print(
                 f"study: connected to {client.scheduler.address} ({n} workers), "
                 f"{dashboard_note(client, local=False)}",
@@ -144,11 +141,25 @@ def connect(
             )
             if workers and n < workers:
                 print(f"study: waiting for {workers} workers", file=stream)
-                client.wait_for_workers(workers)
+                try:  # bounded: workers that never come, a scheduler that stops answering
+                    call_within(
+                        worker_timeout + scheduler_timeout, client.wait_for_workers, workers
+                    )
+                except TimeoutError:
+                    raise StudyFailed(
+                        f"{workers} workers did not connect to {where} within "
+                        f"{worker_timeout:g} s (--worker-timeout); nothing was computed"
+                    ) from None
             elif not n:
                 print("study: no workers yet; tasks wait until workers connect", file=stream)
-        except BaseException:
-            client.close()
+        except BaseException as exc:
+            with suppress(TimeoutError):
+                call_within(2 * scheduler_timeout, client.close)
+            if isinstance(exc, TimeoutError):  # call_within's: the scheduler went silent
+                raise StudyFailed(
+                    f"the scheduler {where} stopped answering after the connection "
+                    f"({scheduler_timeout:g} s, --scheduler-timeout); nothing was computed"
+                ) from None
             raise
     else:
         n = workers or default_workers()
@@ -183,10 +194,11 @@ def connect(
             raise
     try:
         yield client
-    finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+    finally:  # bounded: the scheduler or the workers may have stopped answering
+        with suppress(TimeoutError):
+            call_within(2 * scheduler_timeout, client.close)
+            if cluster is not None:
+                call_within(2 * scheduler_timeout, cluster.close)
 
 
 def _check_runnable(study: Study, output: Path, overwrite: bool = False) -> None:
@@ -214,6 +226,7 @@ def run_study(
     stream: TextIO | None = None,
     overwrite: bool = False,
     worker_timeout: float = DEFAULT_WORKER_TIMEOUT,
+    scheduler_timeout: float = DEFAULT_SCHEDULER_TIMEOUT,
 ) -> RunSummary:
     """Compute every missing unit of ``study`` and write the result to ``output``.
 
@@ -236,8 +249,11 @@ def run_study(
         Compute and replace an ``output`` that exists (complete) already;
         without it such a run is refused.
     worker_timeout : float
-        Seconds without any connected worker, or 20 s without the scheduler,
+        Seconds without any live worker (none connected, or all stopped answering)
         before the run stops with ``StudyFailed`` (:mod:`study.watchdog`).
+    scheduler_timeout : float
+        Seconds a scheduler may take to answer, at connection (``StudyError``)
+        and during the run (``StudyFailed``) (:mod:`study.connect`).
 
     Raises
     ------
@@ -257,6 +273,11 @@ def run_study(
     RunSummary or xarray.DataTree
         What the run did (with ``output``), or the result (without).
     """
+    if not isinstance(study, Study):
+        raise TypeError(
+            f"study: must be a Study (Study.from_toml(path)), got a {type(study).__name__}"
+        )
+    check_timeout(scheduler_timeout, "--scheduler-timeout")
     stream = stream if stream is not None else sys.stderr
     t0 = time.perf_counter()
     check_run(output, client, scheduler, scheduler_file, workers, retries, worker_timeout)
@@ -267,7 +288,8 @@ def run_study(
         survey = _survey(study, plans, work, output, stream)
         if survey.missing:
             where = (client, scheduler, scheduler_file, workers)
-            timing = _compute(plans, work, where, retries, progress, worker_timeout, done, stream)
+            timeouts = (worker_timeout, scheduler_timeout)
+            timing = _compute(plans, work, where, retries, progress, timeouts, done, stream)
         else:
             timing = (0.0, 0.0)
         t2 = time.perf_counter()
@@ -369,9 +391,10 @@ def _survey(study: Study, plans: list[ScenePlan], work, output, stream: TextIO) 
     return Survey(units, reused, missing, set(by_noun) == {"chunks"})
 
 
-def _compute(plans, work, where, retries, progress, worker_timeout, done, stream):
+def _compute(plans, work, where, retries, progress, timeouts, done, stream):
     """Compute every missing unit on the cluster; (compute seconds, compute wall seconds)."""
     client, scheduler, scheduler_file, workers = where
+    worker_timeout, scheduler_timeout = timeouts
     local = client is None and not (scheduler or scheduler_file)
     total = sum(p.spec.n_points for p in plans)
     bar = Progress(total, sum(p.finished_points for p in plans), stream=stream, enabled=progress)
@@ -385,10 +408,18 @@ def _compute(plans, work, where, retries, progress, worker_timeout, done, stream
     if local:
         compile_once(stream)  # before the local workers start: they load it from cache
     quiet = quiet_dask_logs() if client is None else nullcontext()
-    with quiet, connect(client, scheduler, scheduler_file, workers, stream) as c:
+    kw = {"scheduler_timeout": scheduler_timeout, "worker_timeout": worker_timeout}
+    with quiet, connect(client, scheduler, scheduler_file, workers, stream, **kw) as c:
         bar.start()
         t1 = time.perf_counter()
-        dog = Watchdog(c, worker_timeout, local=local, where=str(work.path), stream=stream)
+        dog = Watchdog(
+            c,
+            worker_timeout,
+            local=local,
+            where=str(work.path),
+            stream=stream,
+            scheduler_timeout=scheduler_timeout,
+        )
         drive(c, plans, work, bar, retries, done, watchdog=dog)
         wall = time.perf_counter() - t1
     bar.close()

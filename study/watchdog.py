@@ -2,19 +2,29 @@
 
 :func:`watched_batches` replaces ``as_completed.batches()`` in the client's
 loop (:func:`study.run._compute`). While no result is ready it looks, once a
-second, at the cluster through :class:`Watchdog`:
+second, at the cluster through :class:`Watchdog`, asking the scheduler for its
+workers with a bounded wait (:data:`ASK_TIMEOUT`):
 
-* the scheduler: a client that is no longer connected for
-  :data:`SCHEDULER_GRACE` seconds (the scheduler was killed, the network is
-  gone) stops the run: "lost the scheduler ...";
-* the workers: no worker connected for ``worker_timeout`` seconds (CLI
-  ``--worker-timeout``, default :data:`DEFAULT_WORKER_TIMEOUT`) stops the run:
-  "no worker for ... s". On a local cluster this happens when the worker
-  processes died and their managers (nannies) gave up restarting them; the
-  message says so.
+* the scheduler: a client that is no longer connected, or a scheduler that does
+  not answer (stopped with SIGSTOP, hung, unreachable), for ``scheduler_timeout``
+  seconds (CLI ``--scheduler-timeout``, default
+  :data:`study.connect.DEFAULT_SCHEDULER_TIMEOUT`, 30 s) stops the run: "lost the
+  scheduler ..." or "the scheduler ... did not answer for ... s";
+* the workers: no live worker for ``worker_timeout`` seconds (CLI
+  ``--worker-timeout``, default :data:`DEFAULT_WORKER_TIMEOUT`, 300 s) stops the
+  run. A worker is live while its heartbeat to the scheduler moves on
+  (``last_seen`` changes between two looks): none connected, or every one
+  stopped (SIGSTOP), hung or cut off, counts as none. On a local cluster no
+  worker is left when the worker processes died and their managers (nannies)
+  gave up restarting them; the message says so.
 
-Either ends in :class:`~study.errors.StudyFailed` (one line, exit 1); every
-finished chunk is already saved in the work folder, so a rerun resumes.
+Either ends in :class:`~study.errors.StudyFailed` (one line, exit 1) about
+one second after its timeout (a look never waits past the scheduler timeout);
+the run then cancels its tasks and closes the connection, each bounded
+(:data:`ASK_TIMEOUT`, twice the scheduler timeout); every finished chunk is
+already saved in the work folder, so a rerun resumes. A worker runs one numba
+call of a chunk with the GIL held, which can delay its heartbeat: keep
+``--worker-timeout`` well above the longest single call (the default is ample).
 :func:`quiet_dask_logs` keeps Dask's own error logs (the tracebacks of a lost
 connection, ``CommClosedError``, of a cluster start interrupted by Ctrl-C) off
 the terminal while this process owns the cluster or its connection: the run
@@ -30,12 +40,17 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import TextIO
 
+from study.connect import DEFAULT_SCHEDULER_TIMEOUT
 from study.errors import StudyFailed
 
-#: Default of ``--worker-timeout``: seconds without any worker before a run stops.
+#: Default of ``--worker-timeout``: seconds without any live worker before a run stops.
 DEFAULT_WORKER_TIMEOUT = 300.0
-#: Seconds the client may stay disconnected from its scheduler before the run stops.
-SCHEDULER_GRACE = 20.0
+#: Former name of the default scheduler timeout (seconds without the scheduler).
+SCHEDULER_GRACE = DEFAULT_SCHEDULER_TIMEOUT
+#: Longest wait, in seconds, for one answer of the scheduler to the watchdog.
+ASK_TIMEOUT = 5.0
+#: Seconds every worker may stay silent before the run says it is waiting.
+SILENCE_NOTICE = 10.0
 #: Seconds between two looks at the cluster.
 LOOK_INTERVAL = 1.0
 
@@ -89,31 +104,67 @@ class Watchdog:
         where: str = "the work folder",
         stream: TextIO | None = None,
         clock: Callable[[], float] = time.monotonic,
+        scheduler_timeout: float = DEFAULT_SCHEDULER_TIMEOUT,
     ) -> None:
         self.client = client
         self.worker_timeout = float(worker_timeout)
+        self.scheduler_timeout = float(scheduler_timeout)
         self.local = local
         self.where = where
         self.stream = stream
         self.clock = clock
         self._next_look = 0.0
-        self._lost_since: float | None = None
+        self._lost_since: float | None = None  # start of the first look without an answer
         self._idle_since: float | None = None
+        self._alive_at: float | None = None
+        self._beats: dict[str, object] = {}
+        self._last_info: object = None
+        self._asking: _Ask | None = None
         self._announced = False
 
     def _fail(self, why: str) -> StudyFailed:
         return StudyFailed(f"{why}; finished chunks are kept in {self.where}, rerun to resume")
 
-    def n_workers(self) -> int | None:
-        """Workers connected to the scheduler, or None when it cannot be asked."""
+    def _say(self, text: str) -> None:
+        """One line on the stream, once per run (below a progress line on a terminal)."""
+        if self.stream is None or self._announced:
+            return
+        self._announced = True
+        tty = bool(getattr(self.stream, "isatty", lambda: False)())
+        print(("\n" if tty else "") + f"study: {text}", file=self.stream, flush=True)
+
+    def ask(self, wait: float = ASK_TIMEOUT) -> dict | None:
+        """The scheduler's fresh answer (its identity, every worker), or None.
+
+        None when the client is not connected, or the scheduler has not answered
+        within ``wait`` seconds (the question stays pending: the next look waits
+        for the same answer, never a second thread).
+        """
         if self.client.status != "running":
             return None
-        try:
-            info = self.client.scheduler_info(n_workers=0)
-        except Exception:  # noqa: BLE001 - any failure to ask means: not reachable now
+        if self._asking is None or self._asking.done.is_set():
+            self._asking = _Ask(self.client)
+        info = self._asking.result(wait)
+        if info is None or info is self._last_info:  # distributed keeps a stale copy
             return None
-        n = info.get("n_workers")
-        return len(info.get("workers", {})) if n is None else int(n)
+        self._last_info = info
+        return info
+
+    def n_workers(self) -> int | None:
+        """Workers connected to the scheduler, or None when it does not answer."""
+        info = self.ask()
+        return None if info is None else _count(info)
+
+    def _moved(self, info: dict) -> bool:
+        """Whether any worker's heartbeat moved on since the last look (or cannot be told)."""
+        workers = info.get("workers") or {}
+        beats = {a: w.get("last_seen") if isinstance(w, dict) else None for a, w in workers.items()}
+        moved = len(beats) < _count(info) or any(
+            seen is None or a not in self._beats or self._beats[a] != seen
+            for a, seen in beats.items()
+        )
+        self._beats = beats
+        return moved
 
     def check(self) -> None:
         """Look at the cluster (at most once per :data:`LOOK_INTERVAL`); raise if it is lost."""
@@ -121,32 +172,50 @@ class Watchdog:
         if now < self._next_look:
             return
         self._next_look = now + LOOK_INTERVAL
-        n = self.n_workers()
-        if n is None:
-            self._lost_since = self._lost_since if self._lost_since is not None else now
-            if now - self._lost_since >= SCHEDULER_GRACE:
-                address = getattr(getattr(self.client, "scheduler", None), "address", "?")
-                raise self._fail(
-                    f"lost the scheduler {address}: no connection for "
-                    f"{now - self._lost_since:.0f} s (killed, or the network is down)"
-                )
+        start = now
+        left = self.scheduler_timeout
+        if self._lost_since is not None:  # never wait past the scheduler timeout
+            left -= now - self._lost_since
+        info = self.ask(min(ASK_TIMEOUT, max(0.05, left)))
+        now = max(now, self.clock())
+        address = getattr(getattr(self.client, "scheduler", None), "address", "?")
+        if info is None:
+            self._lost_since = self._lost_since if self._lost_since is not None else start
+            silent = now - self._lost_since
+            if silent >= self.scheduler_timeout:
+                if self.client.status != "running":
+                    why = f"lost the scheduler {address}: no connection for {silent:.0f} s "
+                    why += "(killed, or the network is down)"
+                else:
+                    why = f"the scheduler {address} did not answer for {silent:.0f} s "
+                    why += "(stopped, hung or overloaded; --scheduler-timeout)"
+                raise self._fail(why)
             return
         self._lost_since = None
+        n = _count(info)
         if n > 0:
             self._idle_since = None
+            if self._moved(info) or self._alive_at is None:
+                self._alive_at = now
+            silent = now - self._alive_at
+            if silent >= min(SILENCE_NOTICE, self.worker_timeout / 2):
+                self._say(
+                    f"no worker has answered for {silent:.0f} s; waiting up to "
+                    f"{self.worker_timeout:g} s (--worker-timeout)"
+                )
+            if silent >= self.worker_timeout:
+                raise self._fail(
+                    f"every worker ({n}) stopped answering: no heartbeat for {silent:.0f} s "
+                    "(stopped, hung or cut off; --worker-timeout)"
+                )
             return
+        self._beats = {}
         if self._idle_since is None:
             self._idle_since = now
-            if self.stream is not None and not self._announced:  # once per run
-                self._announced = True
-                tty = bool(getattr(self.stream, "isatty", lambda: False)())
-                print(
-                    ("\n" if tty else "")  # below the progress line
-                    + f"study: no worker is connected; waiting up to {self.worker_timeout:g} s "
-                    "(--worker-timeout)",
-                    file=self.stream,
-                    flush=True,
-                )
+            self._say(
+                f"no worker is connected; waiting up to {self.worker_timeout:g} s "
+                "(--worker-timeout)"
+            )
         if now - self._idle_since >= self.worker_timeout:
             why = (
                 "the local cluster lost every worker process and did not restart them"
@@ -154,6 +223,31 @@ class Watchdog:
                 else "no worker connected to the scheduler"
             )
             raise self._fail(f"{why} for {now - self._idle_since:.0f} s (--worker-timeout)")
+
+
+def _count(info: dict) -> int:
+    n = info.get("n_workers")
+    return len(info.get("workers") or {}) if n is None else int(n)
+
+
+class _Ask:
+    """One question to the scheduler (``scheduler_info`` of every worker) in a daemon thread."""
+
+    def __init__(self, client) -> None:
+        self.done = threading.Event()
+        self.answer: dict | None = None
+        threading.Thread(target=self._run, args=(client,), name="study-watch", daemon=True).start()
+
+    def _run(self, client) -> None:
+        try:
+            self.answer = client.scheduler_info(n_workers=-1)
+        except Exception:  # noqa: BLE001 - any failure to ask means: no answer now
+            self.answer = None
+        finally:
+            self.done.set()
+
+    def result(self, timeout: float) -> dict | None:
+        return self.answer if self.done.wait(timeout) else None
 
 
 def watched_batches(futures, watchdog: Watchdog | None, poll: float = 0.1) -> Iterator[list]:

@@ -97,7 +97,8 @@ def _check_type(name: str, value: object, kind: type) -> None:
         ok = isinstance(value, str)
         rule = "a string"
     if not ok:
-        raise ValueError(f"{name}: must be {rule}, got {type(value).__name__} {value!r}")
+        shown = " ".join(repr(value).split())[:60]  # one line, whatever the value
+        raise ValueError(f"{name}: must be {rule}, got {type(value).__name__} {shown}")
 
 
 @dataclass(frozen=True)

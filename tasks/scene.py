@@ -58,6 +58,12 @@ RATIO_RANGE = (1e-6, 1e6)
 MAX_DOF = 100
 
 
+def _shown(v: object) -> str:
+    """``repr(v)`` on one line, at most 60 characters (error messages stay one line)."""
+    s = " ".join(repr(v).split())
+    return s if len(s) <= 60 else s[:57] + "..."
+
+
 def _is_real(v: object) -> bool:
     """A real number, not a bool (``True`` is an ``int`` in Python) nor a string."""
     return isinstance(v, Real) and not isinstance(v, bool | np.bool_)
@@ -79,7 +85,7 @@ def _ratio_vector(name: str, value: float | Sequence[float], dof: int) -> tuple[
         except TypeError:
             raise ValueError(
                 f"{name}: expected a positive number or a sequence of {dof - 1} numbers, "
-                f"got {value!r}"
+                f"got {_shown(value)}"
             ) from None
         bad = [v for v in items if not _is_real(v)]
         if bad:
@@ -161,7 +167,8 @@ class Scene:
         return cls(MATRICES, data.dof, data.contact[-1] + 1, structure=data)
 
     def __post_init__(self) -> None:
-        if self.contact == MATRICES or self.structure is not None:
+        matrices = isinstance(self.contact, str) and self.contact == MATRICES
+        if matrices or self.structure is not None:
             if self.contact != MATRICES or not isinstance(self.structure, StructureMatrices):
                 raise ValueError("contact: a scene of matrices is made by Scene.from_matrices(...)")
             object.__setattr__(self, "dof", self.structure.dof)
@@ -171,17 +178,17 @@ class Scene:
             object.__setattr__(self, "gammas", ())
             object.__setattr__(self, "kappas", ())
             return
-        if self.contact not in CONTACTS:
-            raise ValueError(f"contact: must be one of {CONTACTS}, got {self.contact!r}")
+        if not isinstance(self.contact, str) or self.contact not in CONTACTS:
+            raise ValueError(f"contact: must be one of {CONTACTS}, got {_shown(self.contact)}")
         if isinstance(self.dof, bool) or not isinstance(self.dof, int | np.integer):
-            raise ValueError(f"dof: must be an integer >= 1, got {self.dof!r}")
+            raise ValueError(f"dof: must be an integer >= 1, got {_shown(self.dof)}")
         if not 1 <= self.dof <= MAX_DOF:
             raise ValueError(f"dof: must be in 1..{MAX_DOF}, got {self.dof}")
         if self.contact == "mass" and self.dof < 2:
             raise ValueError("dof: a 'mass' contact joins two masses, so dof must be >= 2")
         j = self.contact_mass
         if isinstance(j, bool) or not isinstance(j, int | np.integer):
-            raise ValueError(f"contact_mass: must be an integer, got {j!r}")
+            raise ValueError(f"contact_mass: must be an integer, got {_shown(j)}")
         last = self.dof - 1 if self.contact == "mass" else self.dof
         if not 1 <= j <= last:
             what = "lower mass of the contact pair" if self.contact == "mass" else "mass in contact"

@@ -13,7 +13,11 @@ be checked before compute is refused before compute, with one line naming the fi
 * the API: strings, booleans and out-of-range values are refused with a
   ``ValueError`` naming the field; the closed forms never warn;
 * a seeded fuzz test: 300 mutations of a valid study file all end in a validated
-  study or one ``StudyError`` line (never another exception), fast.
+  study or one ``StudyError`` line (never another exception), fast;
+* a seeded fuzz of the Python API: 600 calls of ``Study``, ``SceneSpec``, ``Axis``,
+  ``Points``, ``Scene`` and 100 of ``classify`` with keyword arguments of wrong types
+  and values each validate or raise ``StudyError``/``ValueError``/``TypeError`` in
+  one line naming a field, never another exception.
 """
 
 from __future__ import annotations
@@ -31,7 +35,7 @@ import numpy as np
 import pytest
 
 from analysis import boundaries, predict
-from study import Study, StudyError
+from study import Axis, Points, SceneSpec, Study, StudyError
 from study.chunks import plan
 from study.limits import MAX_AXIS, MAX_NAME
 from study.preflight import MAX_WORKERS_PER_CORE
@@ -340,3 +344,100 @@ def test_fuzzed_studies_fail_fast_with_one_line():
     assert Study.from_dict(base).n_points > 0
     assert refused >= 150, (refused, accepted)  # most mutations break a rule
     assert time.perf_counter() - t0 < 60
+
+
+# --------------------------------------------------------------------------- fuzz of the API
+R = Axis(start=0.5, stop=1.5, num=4)
+BETA = Axis(start=0.0, stop=1.0, num=3)
+
+
+def spec(**kw) -> SceneSpec:
+    return SceneSpec(**{"name": "s", "contact": "ground", "dof": 2, "r": R, "beta": BETA, **kw})
+
+
+def _api_values(rng: random.Random) -> object:
+    pool = [
+        0, -1, 1, 2, 3, 0.0, -0.5, 0.5, 1.5, 1e-308, 1e308, 2**63, 2**64, float("nan"),
+        float("inf"), True, False, np.int64(2), np.int8(-3), np.float32(0.7), np.bool_(True),
+        "x", "", "ground", "grid", "adaptive", None, [], [1.0], [0.5, 1.0], [[1.0, 0.2]],
+        ["1", 2], {}, {"values": [0.5, 1.0]}, {"start": 0.5, "stop": 1.5, "num": 3},
+        {"num": 2**63 - 1, "start": 1.0, "stop": 2.0}, {"foo": 1}, np.array([0.5, 1.0]),
+        np.zeros((2, 2)), (1.0, 2.0), object(), R, BETA, Points((1.0,), (0.1,)), b"bytes",
+        1j, {"r": [1.0], "beta": [0.1]}, [R], [spec()],
+    ]  # fmt: skip
+    return rng.choice(pool)
+
+
+FUZZ_TARGETS = {
+    SceneSpec: (
+        {"name": "s", "contact": "ground", "dof": 2, "r": R, "beta": BETA},
+        [
+            *("contact_mass", "gamma", "kappa", "points", "mode"),
+            *("coarse_step", "verify_fraction", "hint"),
+        ],
+    ),
+    Axis: ({"start": 0.5, "stop": 1.5, "num": 3}, ["spacing", "values"]),
+    Points: ({"r": (1.0, 2.0), "beta": (0.1, 0.2)}, ["gamma", "kappa"]),
+    Study: (
+        {"name": "t", "scenes": (spec(),)},
+        ["description", "fidelity", "overrides", "max_points", "task_seconds", "chunk_points"],
+    ),
+    Scene: ({"contact": "ground", "dof": 2}, ["contact_mass", "gamma", "kappa"]),
+}  # fmt: skip
+
+
+def _one_line(exc: BaseException) -> str:
+    text = str(exc)
+    assert text and "\n" not in text, repr(text)
+    return text
+
+
+def _names_a_field(exc: BaseException, names: set[str]) -> bool:
+    field = getattr(exc, "field", None)
+    head, _, rest = str(exc).partition(": ")
+    text = f"{field} {getattr(exc, 'message', '')}" if field is not None else f"{head} {rest}"
+    tokens = set(re.findall(r"[A-Za-z_]+", text))
+    aliases = {"scene": "scenes", "settings": "overrides"}
+    tokens |= {aliases[t] for t in tokens if t in aliases}
+    return bool(tokens & names) or any(f"'{n}'" in str(exc) for n in names)
+
+
+def test_fuzzed_python_api_fails_with_one_line_naming_a_field():
+    """600 seeded calls with wrong types and values: each validates or raises
+    StudyError/ValueError/TypeError in one line naming a field; never anything else."""
+    rng = random.Random(22)
+    outcomes = {"accepted": 0, "refused": 0}
+    t0 = time.perf_counter()
+    for _ in range(600):
+        cls = rng.choice(list(FUZZ_TARGETS))
+        base, optional = FUZZ_TARGETS[cls]
+        kw = dict(base)
+        keys = list(base) + optional
+        for _ in range(rng.randrange(1, 4)):
+            kw[rng.choice(keys)] = _api_values(rng)
+        if rng.random() < 0.1:
+            kw.pop(rng.choice(list(base)))
+        if rng.random() < 0.05:
+            kw["bogus"] = 1
+        try:
+            cls(**kw)
+        except (StudyError, ValueError, TypeError) as exc:
+            text = _one_line(exc)
+            assert _names_a_field(exc, set(keys) | {"bogus"}), (cls.__name__, kw, text)
+            outcomes["refused"] += 1
+            continue
+        outcomes["accepted"] += 1
+    for _ in range(100):  # classify: the numerics' door (valid calls compute one point)
+        kw = {"r": rng.choice([1.0, _api_values(rng)]), "beta": rng.choice([0.3, _api_values(rng)])}
+        if rng.random() < 0.5:
+            kw[rng.choice(["max_cycles", "step_fraction", "fidelity"])] = _api_values(rng)
+        try:
+            classify(Scene("ground", 2), fidelity=kw.pop("fidelity", "fast"), **kw)
+        except (ValueError, TypeError) as exc:
+            _one_line(exc)
+            assert _names_a_field(exc, {"r", "beta", "max_cycles", "step_fraction", "fidelity"})
+            outcomes["refused"] += 1
+            continue
+        outcomes["accepted"] += 1
+    assert outcomes["refused"] > 300 and outcomes["accepted"] > 20, outcomes
+    assert time.perf_counter() - t0 < 120
