@@ -90,6 +90,15 @@ def free_factors(w, sigma, t):
 
 
 @njit(cache=True)
+def free_derivative_bounds(w, sigma, f0, f1):
+    """Bounds, for all t >= 0, of ``|f'|``, ``|f''|`` and ``|f'''|`` of the free solution
+    of Eq. 4.1 that starts at ``(f0, f1)``: ``hypot(f^(k+1)(0), Omega f^(k)(0))`` (Eq. 4.4)."""
+    f2 = -2.0 * sigma * f1 - w * w * f0
+    f3 = -2.0 * sigma * f2 - w * w * f1
+    return math.hypot(f1, w * f0), math.hypot(f2, w * f1), math.hypot(f3, w * f2)
+
+
+@njit(cache=True)
 def evaluate_damped(seg, sc, t, eta, etad):
     """:func:`tasks.kernel.propagation.evaluate` for damped modes (Eqs. 4.1-4.3)."""
     m = seg.shape[1]
@@ -158,23 +167,18 @@ def derivative_bounds_damped(seg, sc, t_end):
         abs_a = abs(a)
         static = c / (w * w)
         # Duhamel: free about the static offset + zero-start forced response
-        f0 = e0 - static
-        f1 = v0
-        f2 = -2.0 * sigma * f1 - w * w * f0
-        f3 = -2.0 * sigma * f2 - w * w * f1
-        b1 = math.hypot(f1, w * f0) + abs_a * t_end
-        b2 = math.hypot(f2, w * f1) + abs_a * (1.0 + t_end)
-        b3 = math.hypot(f3, w * f2) + abs_a * (1.0 + 2.0 * sigma + w + t_end)
+        f1, f2, f3 = free_derivative_bounds(w, sigma, e0 - static, v0)
+        b1 = f1 + abs_a * t_end
+        b2 = f2 + abs_a * (1.0 + t_end)
+        b3 = f3 + abs_a * (1.0 + 2.0 * sigma + w + t_end)
         P, Q = particular(w, sigma, a)
         if math.isfinite(P) and math.isfinite(Q):
             ap = math.hypot(P, Q)
-            g0 = e0 - static - (P * ct0 + Q * st0)
-            g1 = v0 - (Q * ct0 - P * st0)
-            g2 = -2.0 * sigma * g1 - w * w * g0
-            g3 = -2.0 * sigma * g2 - w * w * g1
-            b1 = min(b1, math.hypot(g1, w * g0) + ap)
-            b2 = min(b2, math.hypot(g2, w * g1) + ap)
-            b3 = min(b3, math.hypot(g3, w * g2) + ap)
+            e = e0 - static - (P * ct0 + Q * st0)
+            f1, f2, f3 = free_derivative_bounds(w, sigma, e, v0 - (Q * ct0 - P * st0))
+            b1 = min(b1, f1 + ap)
+            b2 = min(b2, f2 + ap)
+            b3 = min(b3, f3 + ap)
         alpha = abs(seg[ALPHA, k])
         delta = abs(seg[DELTA, k])
         d1 += alpha * b1 + delta * b2
