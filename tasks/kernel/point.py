@@ -30,6 +30,7 @@ from tasks.kernel.layout import (
     CTX_SEG_SLIP,
     CTX_SEG_STICK,
     CTX_T,
+    DAMP,
     DELTA,
     LOAD_COS,
     N_OUT,
@@ -107,15 +108,13 @@ def _resonant_growth(seg_slip, f_r2, beta):
     mode k with ``pi |a_k| A`` per cycle while the contact dissipates at most
     ``4 beta |phi_k . b| A / r^2``; the amplitude A grows without bound when
     ``beta < pi |a_k| / (4 |f_k|)`` (SDOF: beta < pi/4). Used only where the
-    rate of growth can be too slow to see in simulation. Damped: never (every
-    motion stays bounded, docs/structures.md 4.4).
+    rate of growth can be too slow to see in simulation. A damped mode never
+    grows without bound (docs/structures.md 4.4).
     """
-    if is_damped(seg_slip):
-        return False
     for k in range(seg_slip.shape[1]):
         w = seg_slip[OMEGA, k]
         a = seg_slip[LOAD_COS, k]
-        if abs(w * w - 1.0) <= 1e-12 and a != 0.0:
+        if abs(w * w - 1.0) <= 1e-12 and a != 0.0 and seg_slip[DAMP, k] == 0.0:
             if 4.0 * beta * abs(f_r2[k]) < math.pi * abs(a):
                 return True
     return False
