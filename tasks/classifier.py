@@ -100,10 +100,10 @@ def classify(
         Overrides of single settings, e.g. ``max_cycles=5000``; several starts
         per point with ``starts=("held", "rest")`` and ``n_random=4`` (seeded
         random starts, ``seed=0``; :mod:`tasks.fidelity`). Each start costs one
-        more simulation of every point. ``warm=False`` starts every point from
-        the held state (by default a point's search is seeded by the converged
-        orbit of a close point before it in the call: same labels, fewer
-        periods); ``design=False`` skips the design quantities (then None).
+        more simulation of every point. ``warm=True`` seeds a point's search
+        with the converged orbit of a close point before it in the call (same
+        labels, fewer periods; the other fields agree to the steady-state
+        tolerance); ``design=False`` skips the design quantities (then None).
 
     Returns
     -------

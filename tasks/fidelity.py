@@ -23,11 +23,13 @@ max_work           2e6     2e7       2e8      work units per point before WORK_L
 growth_factor      1e3     1e4       1e5      section growth (vs. start) flagged UNBOUNDED
 =================  ======  ========  =======  ============================================
 
-What is computed (the same in every preset): ``warm`` (True) seeds each point's
+What is computed (the same in every preset): ``warm`` (False) seeds each point's
 steady-state search with the converged orbit of the point before it in the call
-when that one is close (``tasks.kernel.point.run_points``; the same labels, fewer
-periods: docs/theory.md 3, "One regime per point"; ``warm=False`` starts every
-point from the held state, the path before warm starts); ``design`` (True)
+when that one is close (``tasks.kernel.point.run_points``: the same labels and
+stops, stick fractions to 1e-6, fewer periods, docs/theory.md 3, "One regime per
+point"; the other fields then agree only to the steady-state tolerance and
+depend on how points are grouped into calls, so it is off by default and on in
+:func:`tasks.trace_boundaries`, which uses only the labels); ``design`` (True)
 computes the design quantities (amplitudes, contact force amplitude,
 dissipation) of every orbit; with ``design=False`` they are not computed and
 the result's design fields are None (:data:`tasks.result.DESIGN_FIELDS`).
@@ -128,7 +130,7 @@ class Settings:
     starts: tuple[str, ...] = ()
     n_random: int = 0
     seed: int = 0
-    warm: bool = True
+    warm: bool = False
     design: bool = True
 
     def __post_init__(self) -> None:

@@ -135,13 +135,15 @@ def trace_boundaries(
     guess_width : float
         Relative distance of the two probes around each guess.
     fidelity, **settings
-        Passed to :func:`tasks.classify`.
+        Passed to :func:`tasks.classify` (here with ``warm=True`` and
+        ``design=False`` unless given: only the regimes are used).
     """
     r = np.atleast_1d(np.asarray(r, dtype=float))
     lo_range, hi_range = float(beta_range[0]), float(beta_range[1])
     if not (0.0 <= lo_range < hi_range and np.isfinite(hi_range)):
         raise ValueError(f"beta_range: must satisfy 0 <= min < max < inf, got {beta_range!r}")
-    kw = {"fidelity": fidelity, **settings}
+    # only the labels are used: warm starts along the columns, no design pass
+    kw = {"fidelity": fidelity, "warm": True, "design": False, **settings}
     n = r.size
     count = np.zeros(n, dtype=np.int64)
     # coarse scan: brackets and the monotonicity check

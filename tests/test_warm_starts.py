@@ -3,8 +3,8 @@
 Every periodic steady state of a point has the same regime, stops and stick
 fraction (docs/theory.md 3, "One regime per point"), so a point seeded by its
 neighbour's orbit must reach the regime the held start reaches. Whole panels
-are classified cold (``warm=False``: every point from the held start, the
-path before warm starts existed) and warm, in grid order and shuffled.
+are classified cold (``warm=False``, the default: every point from the held
+start) and warm, in grid order and shuffled.
 """
 
 from __future__ import annotations
@@ -15,10 +15,11 @@ import pytest
 from tasks import Scene, classify, regimes
 from tasks.result import DESIGN_FIELDS, FIELDS
 
-#: (scene, r range, beta range, n_r, n_beta): Fig. 4 (gamma = 1, kappa = 0.5),
-#: Fig. 10b (5DOF, contact on m_2) and two scenes beyond the paper.
+#: (scene, beta_max, n_r, n_beta), r in [0.02, 2.5]: Fig. 4 (gamma = 1, kappa = 0.5;
+#: beta = 1, its motion bound at large r, is a grid row), Fig. 10b (5DOF, contact
+#: on m_2) and two scenes beyond the paper.
 PANELS = {
-    "fig04_gamma1_kappa0.5": (Scene("ground", 2, 1, gamma=1.0, kappa=0.5), 1.5, 100, 50),
+    "fig04_gamma1_kappa0.5": (Scene("ground", 2, 1, gamma=1.0, kappa=0.5), 1.5, 100, 34),
     "fig10b": (Scene("ground", 5, 2), 2.0, 100, 12),
     "base_3dof_m2": (Scene("base", 3, 2, gamma=0.8, kappa=1.3), 2.0, 100, 12),
     "mass_3dof_m2": (Scene("mass", 3, 2, gamma=1.2, kappa=0.7), 2.0, 100, 12),
@@ -35,13 +36,14 @@ def _panel(name):
 def test_warm_and_cold_panels_have_the_same_labels(name):
     scene, r, beta = _panel(name)
     cold = classify(scene, r, beta, warm=False, design=False)
-    warm = classify(scene, r, beta, design=False)
+    warm = classify(scene, r, beta, warm=True, design=False)
     assert (cold.regime >= 0).mean() > 0.99  # a determined panel
     assert set(np.unique(cold.regime)) >= {regimes.STICK_SLIP, regimes.CONTINUOUS}
     np.testing.assert_array_equal(warm.regime, cold.regime)
     np.testing.assert_array_equal(warm.converged, cold.converged)
     np.testing.assert_array_equal(warm.stops_per_cycle, cold.stops_per_cycle)
     np.testing.assert_array_equal(warm.period, cold.period)
+    np.testing.assert_array_equal(warm.asymptotic, cold.asymptotic)
     np.testing.assert_allclose(warm.stick_fraction, cold.stick_fraction, rtol=0, atol=1e-6)
     moving = cold.regime > regimes.NO_MOTION
     np.testing.assert_allclose(warm.slip_amplitude[moving], cold.slip_amplitude[moving], rtol=1e-4)
@@ -56,10 +58,10 @@ def test_warm_and_cold_panels_have_the_same_labels(name):
 def test_labels_do_not_depend_on_the_order_of_the_points():
     scene, r, beta = _panel("fig04_gamma1_kappa0.5")
     r, beta = r.ravel(), beta.ravel()
-    grid = classify(scene, r, beta, design=False)
+    grid = classify(scene, r, beta, warm=True, design=False)
     order = np.random.default_rng(19).permutation(r.size)
-    shuffled = classify(scene, r[order], beta[order], design=False)
-    reverse = classify(scene, r[::-1], beta[::-1], design=False)
+    shuffled = classify(scene, r[order], beta[order], warm=True, design=False)
+    reverse = classify(scene, r[::-1], beta[::-1], warm=True, design=False)
     for other, index in ((shuffled, order), (reverse, np.arange(r.size)[::-1])):
         np.testing.assert_array_equal(other.regime, grid.regime[index])
         np.testing.assert_array_equal(other.stops_per_cycle, grid.stops_per_cycle[index])
@@ -70,7 +72,7 @@ def test_other_starts_are_never_warm():
     """``starts`` compares starts: only the held start is seeded."""
     scene, r, beta = _panel("fig04_gamma1_kappa0.5")
     r, beta = r[::5, ::4], beta[::5, ::4]
-    both = classify(scene, r, beta, starts=("held", "rest"), design=False)
+    both = classify(scene, r, beta, starts=("held", "rest"), warm=True, design=False)
     rest = classify(scene, r, beta, initial_condition="rest", warm=False, design=False)
     np.testing.assert_array_equal(both.regime_rest, rest.regime)
     assert not both.start_dependent.any()

@@ -375,9 +375,10 @@ def warm_point(r, beta, scene, settings, out, final, seed):
     ``section_rtol`` of the motion, not unstable), its period's statistics give
     the fields (:func:`_finish`) and the creep rule applies
     (:func:`_creep_limit`). Tried only where the held start of
-    :func:`simulate_point` would iterate: held start, beta > 0, below the motion
-    bound (:func:`held_margin`: above it the held start is proved stuck for
-    ever in its first cycle), no resonant growth.
+    :func:`simulate_point` would iterate: held start, beta > 0, strictly below
+    the motion bound (:func:`held_margin` below ``-HELD_MARGIN_RTOL beta``: at
+    or above it the held start is proved stuck for ever in its first cycle), no
+    resonant growth.
 
     Returns ``(accepted, cycles)``; when not accepted, ``out`` and ``final``
     are left to :func:`simulate_point`.
@@ -387,7 +388,10 @@ def warm_point(r, beta, scene, settings, out, final, seed):
     ctx, work, X_held, _, ic_used = _context(r, beta, scene, settings)
     if beta == 0.0 or ic_used != IC_HELD or not shooting:
         return False, 0
-    if held_margin(ctx) > HELD_MARGIN_RTOL * beta:
+    if held_margin(ctx) >= -HELD_MARGIN_RTOL * beta:
+        # at or above the motion bound the held start is proved stuck for ever
+        # in its first cycle; on the bound, orbits with slips below the creep
+        # threshold coexist with it (docs/theory.md 3): the held start decides
         return False, 0
     if _resonant_growth(ctx[CTX_SEG_SLIP], ctx[CTX_F_R2], beta):
         return False, 0
@@ -425,7 +429,7 @@ def _seeds_next(out):
 def run_points(r, beta, scene, settings):
     """Classify every point ``(r[i], beta[i])``.
 
-    With ``settings[12]`` (``warm``) a point first tries a warm start
+    With ``settings[12]`` (``warm``, :mod:`tasks.fidelity`) a point first tries a warm start
     (:func:`warm_point`) from the orbit of the last point before it that
     converged to a period-1 motion, if that point lies within ``WARM_STEP``
     (relative) in beta and within ``WARM_PHASE`` in the phase of the fastest
