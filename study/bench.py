@@ -518,7 +518,7 @@ def main_bench(
         Directory for the two files (created if missing).
     quick : bool
         A small point set (3 points per scene, no bisection with the baseline):
-        about 30 s instead of several minutes.
+        a minute or two instead of several minutes.
     log : callable, optional
         Receives one progress line per scene (e.g. ``print``).
 

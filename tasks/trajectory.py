@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-from tasks import kernel
+from tasks import kernel, numba_cache
 from tasks.classifier import result_from_kernel, scene_modes_cached, settings_args
 from tasks.fidelity import resolve
 from tasks.result import ClassifyResult
@@ -160,6 +160,7 @@ def trajectory(
     n = scene.dof
     result = None
     theta = 0.0
+    numba_cache.announce_compile()  # one line on stderr before a first compile
     ctx, work = kernel._context(r, beta, scene_args, args)[:2]
     if isinstance(start, str) and start == "steady":
         rb = (np.array([r]), np.array([beta]))
