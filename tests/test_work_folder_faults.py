@@ -30,7 +30,7 @@ import numpy as np
 import pytest
 from conftest import local_cluster_client
 from test_reliability_faults import SMALL, _start_run, _wait_saved
-from test_study_cluster import _env, assert_same_result
+from test_study_cluster import LONG, _env, assert_same_result
 
 from study import Study
 from study.errors import StudyFailed, StudyInterrupted
@@ -221,7 +221,8 @@ def test_a_held_lock_refuses_a_second_process(tmp_path):
 
 def test_work_folder_deleted_mid_run_blocks_a_second_run(tmp_path):
     out = tmp_path / "long.nc"
-    first = _start_run(tmp_path, "-o", "long.nc", "--workers", "1", "--quiet")
+    longer = LONG.replace("num = 60", "num = 240").replace('"balanced"', '"exact"')
+    first = _start_run(tmp_path, "-o", "long.nc", "--workers", "1", "--quiet", study=longer)
     try:
         _wait_saved(out, 2, first)
         shutil.rmtree(out.with_name("long.nc.work"))
@@ -235,7 +236,7 @@ def test_work_folder_deleted_mid_run_blocks_a_second_run(tmp_path):
         )
         assert second.returncode == 2, second.stderr
         assert "another run is writing" in second.stderr and "Traceback" not in second.stderr
-        assert first.poll() is None  # the first run goes on
+        assert first.poll() is None, first.stderr.read()  # the first run goes on
     finally:
         os.killpg(first.pid, signal.SIGINT)
         first.communicate(timeout=WAIT)
@@ -293,10 +294,14 @@ def test_os_fault_while_writing_one_line_older_result_untouched(
     out = tmp_path / "two.nc"
     out.write_bytes(b"an older result")
     real = netcdf._fill_units
+    calls = [0]
 
-    def failing(path, *args, **kwargs):
-        assert Path(path).exists()  # the temporary file is being written
-        raise _fault(kind)
+    def failing(group, *args, **kwargs):
+        calls[0] += 1
+        if calls[0] == 2:  # the second scene: the temporary file holds the first
+            assert Path(group.filepath()).exists()
+            raise _fault(kind)
+        return real(group, *args, **kwargs)
 
     monkeypatch.setattr(netcdf, "_fill_units", failing)
     with pytest.raises(StudyFailed) as err:
