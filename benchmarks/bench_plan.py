@@ -53,32 +53,16 @@ def measure(name: str, n_chunks: int) -> list[tuple[str, str, int, float, float]
     return rows
 
 
-def _warm() -> None:
-    import numpy as np
-
-    from tasks import Scene, classify
-
-    classify(Scene("ground", 2), np.array([1.0]), np.array([0.3]))
-
-
 def startup_seconds(workers: int = 2) -> float:
-    """Wall seconds to start a LocalCluster as ``study run`` does and load the kernels."""
-    import logging
+    """Wall seconds to start the local cluster of ``study run`` and load the kernels."""
+    import io
 
-    from distributed import Client, LocalCluster
+    from benchmarks.bench_scheduling import _warm
+    from study.run import connect
 
+    _warm()  # the disk cache is filled: workers load, not compile
     t0 = time.perf_counter()
-    with (
-        LocalCluster(
-            n_workers=workers,
-            threads_per_worker=1,
-            processes=True,
-            host="127.0.0.1",
-            dashboard_address=None,
-            silence_logs=logging.CRITICAL,
-        ) as cluster,
-        Client(cluster) as client,
-    ):
+    with connect(workers=workers, stream=io.StringIO()) as client:
         client.run(_warm)
         return time.perf_counter() - t0
 
