@@ -218,6 +218,7 @@ def test_work_folder_deleted_mid_run_blocks_a_second_run(tmp_path):
         assert second.returncode == 2, second.stderr
         assert "another run is writing" in second.stderr and "Traceback" not in second.stderr
         assert first.poll() is None, first.stderr.read()  # the first run goes on
+        _wait_saved(out, 2, first)  # and saves into a work folder made again
     finally:
         os.killpg(first.pid, signal.SIGINT)
         first.communicate(timeout=WAIT)
