@@ -233,7 +233,9 @@ def cmd_plan(args) -> int:
             f"{p.spec.name:<24}{p.kind:>7}{n:>12,}{p.n_chunks:>9,}"
             f"{n / p.n_chunks:>10.0f}{est / p.n_chunks:>12.2f}{est:>12.1f}"
         )
-    wall = total_s / workers
+    from study.cost import wall_seconds
+
+    wall = wall_seconds(total_s, workers)  # local cluster start-up included
     print(
         f"total: {n_tasks:,} tasks, about {total_s:,.0f} CPU s; "
         f"about {wall:,.0f} s on {workers} workers"

@@ -35,23 +35,29 @@ def compute_chunk(task: dict) -> dict[str, np.ndarray]:
         the compute time of the chunk (a 0-d float array).
     """
     t0 = time.perf_counter()
-    kind = task["kind"]
-    if kind == "grid":
-        out = _classify(
-            task["scene"], task["settings"], *np.meshgrid(task["r"], task["beta"], indexing="ij")
-        )
-    elif kind == "points":
-        out = _classify_points(task)
-    elif kind == "adaptive":  # a point list of one refinement wave (study.adaptive)
-        out = _classify(task["scene"], task["settings"], task["r"], task["beta"])
-    elif kind == "trace":
-        from study.trace import trace_chunk
-
-        out = trace_chunk(task)
-    else:
-        raise ValueError(f"kind: unknown chunk kind {kind!r}")
+    run = KINDS.get(task["kind"])
+    if run is None:
+        raise ValueError(f"kind: unknown chunk kind {task['kind']!r}")
+    out = run(task)
     out["seconds"] = np.float64(time.perf_counter() - t0)
     return out
+
+
+def _grid(task: dict) -> dict:
+    """A block of a grid: every (r, beta) pair of its axes."""
+    r, beta = np.meshgrid(task["r"], task["beta"], indexing="ij")
+    return _classify(task["scene"], task["settings"], r, beta)
+
+
+def _point_list(task: dict) -> dict:
+    """A point list of one refinement wave (study.adaptive): one scene."""
+    return _classify(task["scene"], task["settings"], task["r"], task["beta"])
+
+
+def _trace(task: dict) -> dict:
+    from study.trace import trace_chunk
+
+    return trace_chunk(task)
 
 
 def _classify(scene: dict, settings: dict, r: np.ndarray, beta: np.ndarray) -> dict:
@@ -87,3 +93,7 @@ def _classify_points(task: dict) -> dict:
         for name in out:
             out[name][sel] = part[name]
     return out
+
+
+#: The computation of each kind of unit (:mod:`study.plans`).
+KINDS = {"grid": _grid, "points": _classify_points, "adaptive": _point_list, "trace": _trace}

@@ -9,6 +9,17 @@ Measured with ``benchmarks/bench_scheduling.py``: on a 2-worker LocalCluster the
 scheduling overhead is about 2-5 % with tasks of 0.3-1.5 s and 12-14 % with
 tasks of 0.1 s, hence the target of ``[study] task_seconds`` = 0.5 s.
 
+How the constants are calibrated (``benchmarks/bench_plan.py``): whole chunks
+of the real plans of the example studies (quickstart, Figs. 3, 4, 5, 10a, 14,
+15, 17: every regime of the maps, as in a run), a few per scene, computed by
+``study.compute.compute_chunk`` and timed in CPU seconds; ``BASE_SECONDS`` and
+``DOF_SLOPE`` are fitted to the measured seconds per point. The earlier
+constants (fitted to 400 random points per scene, without the design pass)
+were 1.1-2.4 times low per point, and the wall time printed by ``study plan``
+had no cluster start-up: 2-5 times low in all. :func:`wall_seconds` adds the
+start-up (:data:`STARTUP_SECONDS`, measured by ``bench_plan.py --startup``) and
+the scheduling overhead.
+
 Task sizes must not change between a run and its resume (they define the chunk
 keys), so they always use these fixed constants or ``[study] chunk_points``.
 :func:`calibrate` measures the real cost on the local machine for estimates
@@ -24,15 +35,22 @@ import numpy as np
 from tasks.fidelity import Settings
 from tasks.scene import Scene
 
-#: Seconds per point of a 1-DOF scene for each preset. Fitted to
-#: ``benchmarks/bench_scheduling.py calibrate`` (400 random points of a whole
-#: r x beta map, so all regimes mixed, one idle core, 1-5 DOF): measured
-#: 0.07-0.43 ms (fast), 0.09-0.69 ms (balanced), 0.10-0.73 ms (exact) per point
-#: from 1 to 5 DOF. Points near a resonance or a boundary cost more, no-motion
+#: CPU seconds per point of a 1-DOF scene for each preset. Fitted to
+#: ``benchmarks/bench_plan.py`` (whole chunks of the example studies, balanced
+#: preset): measured 0.31 ms (1 DOF, Fig. 3), 0.19-0.63 ms, median 0.33 ms
+#: (2 DOF, 21 scenes), 0.86 ms (5 DOF, Fig. 10a) per point. The fast and exact
+#: presets keep their ratio to balanced of ``bench_scheduling.py calibrate``
+#: (0.6 and 1.15). Points near a resonance or a boundary cost more, no-motion
 #: points far less.
-BASE_SECONDS: dict[str, float] = {"fast": 8.0e-5, "balanced": 1.3e-4, "exact": 1.5e-4}
-#: Relative extra cost per additional degree of freedom.
-DOF_SLOPE = 1.25
+BASE_SECONDS: dict[str, float] = {"fast": 1.7e-4, "balanced": 2.8e-4, "exact": 3.2e-4}
+#: Relative extra cost per additional degree of freedom (fit above: 2 DOF 0.42 ms,
+#: 5 DOF 0.84 ms per point).
+DOF_SLOPE = 0.5
+#: Wall seconds to start a local cluster of single-threaded workers and load the
+#: compiled kernels in them (``bench_plan.py --startup``: 4.5-4.6 s, 2 workers).
+STARTUP_SECONDS = 4.5
+#: Scheduling overhead of tasks of about ``task_seconds`` (bench_scheduling.py: 2-5 %).
+SCHEDULING_OVERHEAD = 0.05
 #: Shortest task the sizing aims at, in seconds: below ~0.1 s the fixed cost of
 #: a Dask task (scheduling, transfer, the client's save) is no longer small.
 MIN_TASK_SECONDS = 0.1
@@ -47,6 +65,13 @@ TRACE_POINTS_PER_R = 40
 def seconds_per_point(dof: int, fidelity: str) -> float:
     """Estimated compute seconds for one (r, beta) point."""
     return BASE_SECONDS[fidelity] * (1.0 + DOF_SLOPE * (dof - 1))
+
+
+def wall_seconds(cpu_seconds: float, workers: int, local: bool = True) -> float:
+    """Estimated wall seconds of a run: start-up (local cluster), then the CPU seconds
+    shared by ``workers`` with the scheduling overhead."""
+    startup = STARTUP_SECONDS if local else 0.0
+    return startup + cpu_seconds / max(1, workers) * (1.0 + SCHEDULING_OVERHEAD)
 
 
 def points_per_task(dof: int, fidelity: str, task_seconds: float) -> int:

@@ -24,13 +24,13 @@ complete.
 from __future__ import annotations
 
 import json
+import math
 import os
 import platform
 from datetime import UTC, datetime
 from importlib import metadata
 from pathlib import Path
 
-import dask
 import dask.array as da
 import netCDF4
 import numpy as np
@@ -280,8 +280,11 @@ def scene_dataset(plan: ScenePlan, study: Study) -> tuple[xr.Dataset, dict[str, 
             enc["_FillValue"] = None
         if name in ("regime", "regime_rest"):
             enc["dtype"] = "int8"
-        lazy = da.full(vshape, _fill(dt), dtype=dt, chunks=_fill_chunks_shape(vshape, grid))
-        data_vars[name] = xr.Variable(vdims, lazy, _attrs(name))
+        if math.prod(vshape) <= _BLOCK:  # small: numpy (a dask graph costs more than it saves)
+            fill = np.full(vshape, _fill(dt), dtype=dt)
+        else:
+            fill = da.full(vshape, _fill(dt), dtype=dt, chunks=_fill_chunks_shape(vshape, grid))
+        data_vars[name] = xr.Variable(vdims, fill, _attrs(name))
         encoding[name] = enc
     bounds = _boundary_vars(plan, axes)
     data_vars.update(bounds)
@@ -334,24 +337,18 @@ def write_result(
     gattrs = global_attrs(study, command)
     grouped = len(plans) > 1
     try:
-        if grouped:  # the root: attributes only; each scene is a group appended below
-            with netCDF4.Dataset(tmp, "w", format="NETCDF4") as nc:
+        with netCDF4.Dataset(tmp, "w", format="NETCDF4") as nc:  # one handle for every scene
+            if grouped:  # the root: attributes only; one group per scene
                 nc.setncatts(root_attrs(gattrs, [p.spec.name for p in plans]))
-        for plan in plans:
-            ds, enc = scene_dataset(plan, study)
-            if not grouped:
-                ds = ds.assign_attrs({**gattrs, **ds.attrs})
-            with dask.config.set(scheduler="synchronous"):
-                ds.to_netcdf(
-                    tmp,
-                    mode="a" if grouped else "w",
-                    group=plan.spec.name if grouped else None,
-                    engine="netcdf4",
-                    format="NETCDF4",
-                    encoding=enc,
-                )
-            del ds
-        _fill_units(tmp, plans, work, grouped)
+            groups = [nc.createGroup(p.spec.name) if grouped else nc for p in plans]
+            values = _Deferred()  # every definition first, then every value (see _Deferred)
+            for group, plan in zip(groups, plans, strict=True):
+                _define_scene(group, plan, study, {} if grouped else gattrs, values)
+            values.write()
+            for group, plan in zip(groups, plans, strict=True):
+                _fill_units(group, plan, work)
+            for group, plan in zip(groups, plans, strict=True):
+                group.setncatts(plan.result_attrs(work))
         with open(tmp, "rb+") as f:  # on disk before it takes the output's name
             os.fsync(f.fileno())
         os.replace(tmp, output)
@@ -369,16 +366,78 @@ def write_result(
     return output
 
 
-def _fill_units(path: Path, plans: list[ScenePlan], work: WorkDir, grouped: bool) -> None:
-    """Write every unit's arrays into its block of the file (one unit in memory)."""
-    with netCDF4.Dataset(path, "a") as nc:
-        nc.set_auto_maskandscale(False)
-        for plan in plans:
-            group = nc.groups[plan.spec.name] if grouped else nc
-            for name, index, values in plan.writes(work):
-                var = group.variables[name]
-                var[index] = values.astype(var.dtype, copy=False)
-            group.setncatts(plan.result_attrs(work))
+class _Deferred:
+    """The ``writer`` of xarray's store that keeps every value for later.
+
+    netCDF-4 files leave define mode at each write after a definition, and each
+    time the library walks the metadata of every group in the file: writing
+    each scene's values right after its definitions makes the assembly
+    quadratic in the number of scenes. Here every scene is defined first (with
+    xarray's CF encoding), then the coordinates and closed-form boundaries are
+    written; the per-point variables' placeholders (lazy fill values) are not
+    written at all: the units tile every variable (:meth:`ScenePlan.writes`).
+    """
+
+    def __init__(self) -> None:
+        self.pending: list[tuple[object, object]] = []
+
+    def add(self, source, target, region=None) -> None:
+        if not isinstance(source, da.Array):  # placeholders are dask arrays: skipped
+            self.pending.append((source, target))
+
+    def write(self) -> None:
+        for source, target in self.pending:
+            target[...] = source
+        self.pending.clear()
+
+
+def _define_scene(group, plan: ScenePlan, study: Study, gattrs: dict, values: _Deferred) -> None:
+    """One scene's variables, dims and attributes in an open netCDF group (no values)."""
+    from xarray.backends import NetCDF4DataStore
+
+    try:
+        from xarray.backends.writers import dump_to_store
+    except ImportError:  # xarray < 2025.9
+        from xarray.backends.api import dump_to_store
+
+    ds, enc = scene_dataset(plan, study)
+    if gattrs:
+        ds = ds.assign_attrs({**gattrs, **ds.attrs})
+    placeholders = set(plan.layout()[2])
+    ds = ds.assign({n: ds[n].copy(data=_lazy(ds[n].data)) for n in placeholders})
+    dump_to_store(ds, NetCDF4DataStore(group), values, encoding=enc)
+    for var in group.variables.values():
+        _size_cache(var)
+
+
+def _size_cache(var) -> None:
+    """A variable's HDF5 chunk cache: at most NC_CACHE_BYTES, at most the variable itself.
+
+    Every variable of the file keeps its cache until the file is closed: caches
+    of the full size for thousands of small scenes would make the client's
+    memory grow with the number of scenes.
+    """
+    chunking = var.chunking()
+    if not isinstance(chunking, list | tuple) or not chunking:  # contiguous or scalar
+        return
+    item = var.dtype.itemsize if hasattr(var.dtype, "itemsize") else 8
+    chunk_bytes = math.prod(chunking) * item
+    n_chunks = math.prod(-(-n // c) for n, c in zip(var.shape, chunking, strict=True))
+    size = min(NC_CACHE_BYTES, max(chunk_bytes, n_chunks * chunk_bytes))
+    slots = min(NC_CACHE_SLOTS, 2 * n_chunks + 1)
+    var.set_var_chunk_cache(size=size, nelems=slots)
+
+
+def _lazy(data) -> da.Array:
+    return data if isinstance(data, da.Array) else da.from_array(data, chunks=-1, name=False)
+
+
+def _fill_units(group, plan: ScenePlan, work) -> None:
+    """Every unit of a scene into its block of the group (one unit in memory at a time)."""
+    group.set_auto_maskandscale(False)
+    for name, index, values in plan.writes(work):
+        var = group.variables[name]
+        var[index] = values.astype(var.dtype, copy=False)
 
 
 def result_tree(study: Study, plans: list[ScenePlan], work) -> xr.DataTree:
@@ -391,7 +450,7 @@ def result_tree(study: Study, plans: list[ScenePlan], work) -> xr.DataTree:
     for plan in plans:
         ds, _ = scene_dataset(plan, study)
         variables = plan.layout()[2]
-        filled = {name: np.array(ds[name].data.compute()) for name in variables}  # own memory
+        filled = {name: np.array(ds[name].values) for name in variables}  # own memory
         for name, index, values in plan.writes(work):
             filled[name][index] = values
         ds = ds.assign({name: ds[name].copy(data=filled[name]) for name in variables})

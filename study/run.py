@@ -115,11 +115,14 @@ def connect(
     stream: TextIO = sys.stderr,
     scheduler_timeout: float = DEFAULT_SCHEDULER_TIMEOUT,
     worker_timeout: float = DEFAULT_WORKER_TIMEOUT,
+    in_process: bool = False,
 ):
     """A Dask client: the one given, a running scheduler, or a new LocalCluster.
 
     The LocalCluster has one single-threaded worker process per core (the
-    numerics hold the GIL) and listens on 127.0.0.1 only. With a running
+    numerics hold the GIL) and listens on 127.0.0.1 only; with ``in_process``
+    one worker thread in this process instead (no process to start: for studies
+    shorter than the start-up, :func:`in_process_pays`). With a running
     scheduler, ``workers`` means: wait until that many workers are connected.
     A client that is given is neither changed nor closed.
     """
@@ -162,12 +165,15 @@ def connect(
                 ) from None
             raise
     else:
-        n = workers or default_workers()
+        n = 1 if in_process else workers or default_workers()
         cluster = start_deferring_sigint(  # Ctrl-C during the start: one line (study.watchdog)
             lambda: LocalCluster(
                 n_workers=n,
                 threads_per_worker=1,
-                processes=True,
+                processes=not in_process,
+                # tcp:// for a cluster in this process too: inproc:// opens a port on
+                # every interface beside it
+                protocol="tcp://",
                 host="127.0.0.1",
                 dashboard_address="127.0.0.1:0",
                 # workers' own logs: a worker that outlives the scheduler at Ctrl-C
@@ -178,10 +184,12 @@ def connect(
         try:
             client = Client(cluster)
             client.register_plugin(IgnoreSigint())
-            print(
-                f"study: local cluster with {n} workers, {dashboard_note(client, local=True)}",
-                file=stream,
+            what = (
+                "a small study: computing in this process (no worker processes to wait for)"
+                if in_process
+                else f"local cluster with {n} workers"
             )
+            print(f"study: {what}, {dashboard_note(client, local=True)}", file=stream)
         except BaseException as exc:
             if client is not None:
                 client.close()
@@ -405,10 +413,15 @@ def _compute(plans, work, where, retries, progress, timeouts, done, stream):
         }
     )
     bar.eta_seconds = bar.tracker.eta
+    in_process = local and workers is None and in_process_pays(plans, work)
     if local:
         compile_once(stream)  # before the local workers start: they load it from cache
     quiet = quiet_dask_logs() if client is None else nullcontext()
-    kw = {"scheduler_timeout": scheduler_timeout, "worker_timeout": worker_timeout}
+    kw = {
+        "scheduler_timeout": scheduler_timeout,
+        "worker_timeout": worker_timeout,
+        "in_process": in_process,
+    }
     with quiet, connect(client, scheduler, scheduler_file, workers, stream, **kw) as c:
         bar.start()
         t1 = time.perf_counter()
@@ -424,6 +437,17 @@ def _compute(plans, work, where, retries, progress, timeouts, done, stream):
         wall = time.perf_counter() - t1
     bar.close()
     return done.compute_seconds, wall
+
+
+def in_process_pays(plans: list[ScenePlan], work) -> bool:
+    """True if the missing work is done sooner by one thread here than by the worker
+    processes of a local cluster, whose start-up (:data:`study.cost.STARTUP_SECONDS`)
+    would be longer than what they save (the numerics hold the GIL: one thread)."""
+    from study.cost import STARTUP_SECONDS
+
+    cpu = sum(p.est_seconds * p.missing_points(work) / max(1, p.spec.n_points) for p in plans)
+    workers = default_workers()
+    return workers <= 1 or cpu * (1 - 1 / workers) < STARTUP_SECONDS
 
 
 def _assemble(study: Study, plans: list[ScenePlan], work, output, command: str | None):

@@ -101,12 +101,18 @@ class WorkDir:
         final = self.chunk_path(scene, key)
         tmp = final.with_name(f".{final.name}.{os.getpid()}{TMP_SUFFIX}")
         try:
-            final.parent.mkdir(parents=True, exist_ok=True)
-            with open(tmp, "wb") as f:
-                np.savez(f, **arrays)
-                f.flush()
-                os.fsync(f.fileno())
-            os.replace(tmp, final)
+            for attempt in range(3):  # the folder deleted under us: made again
+                try:
+                    final.parent.mkdir(parents=True, exist_ok=True)
+                    with open(tmp, "wb") as f:
+                        np.savez(f, **arrays)
+                        f.flush()
+                        os.fsync(f.fileno())
+                    os.replace(tmp, final)
+                    break
+                except FileNotFoundError:
+                    if attempt == 2:
+                        raise
         except OSError as exc:  # no space, permission, I/O error: one line, nothing lost
             tmp.unlink(missing_ok=True)
             raise StudyFailed(

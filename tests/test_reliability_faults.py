@@ -281,6 +281,8 @@ def test_ctrl_c_during_local_cluster_start_one_line(tmp_path):
     assert rc == 130, err
     assert "Traceback" not in err and "KeyboardInterrupt" not in err, err
     assert len(lines) == 1 and lines[0].startswith("study: interrupted:"), err
+    work = tmp_path / "long.nc.work"  # named only where it is kept
+    assert (str(work) in lines[0] or "long.nc.work" in lines[0]) == work.is_dir(), err
 
 
 def test_interrupted_run_names_the_older_result(tmp_path):

@@ -577,6 +577,20 @@ def test_regime_rest_is_written_only_where_rest_is_a_start(tmp_path, warm_kernel
     assert_fields_equal(ds, {}, expected)
 
 
+def test_small_study_runs_in_process_with_the_same_result(tmp_path, warm_kernels):
+    """No worker processes to wait for when they would take longer to start than the
+    study takes; --workers asks for them. Both files are identical."""
+    write_study(tmp_path / "multi.toml", MULTI)
+    small = run_cli(tmp_path, "run", "multi.toml", "-o", "small.nc")
+    assert_ok(small)
+    assert "computing in this process (no worker processes" in small.stderr
+    assert "local cluster with" not in small.stderr
+    procs = run_cli(tmp_path, "run", "multi.toml", "-o", "procs.nc", "--workers", "2")
+    assert_ok(procs)
+    assert "local cluster with 2 workers" in procs.stderr
+    assert_same_result(tmp_path / "small.nc", tmp_path / "procs.nc")
+
+
 def test_remote_cluster_via_scheduler_file(tmp_path, remote):
     write_study(tmp_path / "kappa.toml", KAPPA)
     proc = run_cli(

@@ -29,8 +29,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 from conftest import local_cluster_client
+from test_adaptive import ADAPTIVE  # two planes of 64 x 40 (a gamma sweep)
 from test_reliability_faults import SMALL, _start_run, _wait_saved
-from test_study_cluster import _env, assert_same_result
+from test_study_cluster import LONG, _env, assert_same_result
 
 from study import Study
 from study.errors import StudyFailed, StudyInterrupted
@@ -52,24 +53,6 @@ dof = 3
 points = [[0.4, 0.1], [0.9, 0.05], [1.3, 0.5], [1.8, 0.2]]
 """
 )
-#: An adaptive scene of two planes (a gamma sweep).
-ADAPTIVE = """
-[study]
-name = "adaptive"
-fidelity = "fast"
-chunk_points = 60
-
-[[scene]]
-name = "sweep"
-contact = "ground"
-dof = 2
-mode = "adaptive"
-coarse_step = 8
-verify_fraction = 0.01
-gamma = {values = [1.0, 2.0]}
-r = {start = 0.1, stop = 2.4, num = 48}
-beta = {start = 0.0, stop = 1.5, num = 30}
-"""
 
 
 @pytest.fixture(scope="module")
@@ -93,8 +76,12 @@ def _resign(path: Path, edit) -> None:
 
 
 def _kept_work(study: Study, out: Path, client, monkeypatch) -> Path:
-    """Compute every unit of ``study`` and keep the work folder (the write is interrupted)."""
+    """Write a clean result beside ``out`` (``clean.nc``), then compute every unit of
+    ``study`` for ``out`` and keep its work folder (the write is interrupted)."""
     import study.run as run_module
+
+    clean = out.with_name("clean.nc")
+    run_study(study, clean, client=client, progress=False, stream=io.StringIO())
 
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
@@ -108,15 +95,17 @@ def _kept_work(study: Study, out: Path, client, monkeypatch) -> Path:
     return work
 
 
-def _discarded(log: str) -> list[str]:
-    return [ln for ln in log.splitlines() if ln.startswith("study: discarded ")]
+def _assert_discarded(log: str, expected: list[tuple[Path, str]]) -> None:
+    """Each damaged entry named in exactly one line, with why; no other line; no traceback."""
+    lines = [ln for ln in log.splitlines() if ln.startswith("study: discarded ")]
+    for path, why in expected:
+        assert sum(str(path) in ln and why in ln for ln in lines) == 1, (path, log)
+    assert len(lines) == len(expected) and "Traceback" not in log, log
 
 
 def test_damaged_entries_are_named_discarded_recomputed(tmp_path, client, monkeypatch):
     study = _study(tmp_path, TWO)
-    clean = tmp_path / "clean.nc"
-    run_study(study, clean, client=client, progress=False, stream=io.StringIO())
-    out = tmp_path / "two.nc"
+    out, clean = tmp_path / "two.nc", tmp_path / "clean.nc"
     work = _kept_work(study, out, client, monkeypatch)
     grid = sorted((work / "sweep").glob("*.npz")) if (work / "sweep").is_dir() else []
     grid = grid or sorted(p for p in work.glob("*/*.npz") if p.parent.name != "pts")
@@ -135,28 +124,23 @@ def test_damaged_entries_are_named_discarded_recomputed(tmp_path, client, monkey
     log = io.StringIO()
     summary = run_study(study, out, client=client, progress=False, stream=log)
     text = log.getvalue()
-    lines = _discarded(text)
-    for path, why in (
+    expected = [
         (grid[0], "not a chunk file"),
         (grid[1], "not a chunk file"),
         (grid[2], "has no field 'dissipation'"),
         (grid[3], "field 'regime' is int16, expected int8"),
         (work / "pts", "not a scene folder"),
         (lock, "a stale lock"),
-    ):
-        assert sum(str(path) in ln and why in ln for ln in lines) == 1, (path, text)
-    assert len(lines) == 6, text
+    ]
+    _assert_discarded(text, expected)
     assert summary.computed == 4 + 1 and summary.reused == 6, text  # 4 grid chunks, 1 list
-    assert "Traceback" not in text
     assert not work.exists() and not lock.exists()
     assert_same_result(out, clean)
 
 
 def test_adaptive_planes_and_point_lists_are_verified_before_use(tmp_path, client, monkeypatch):
     study = _study(tmp_path, ADAPTIVE)
-    clean = tmp_path / "clean.nc"
-    run_study(study, clean, client=client, progress=False, stream=io.StringIO())
-    out = tmp_path / "adaptive.nc"
+    out, clean = tmp_path / "adaptive.nc", tmp_path / "clean.nc"
     work = _kept_work(study, out, client, monkeypatch)
     planes = sorted((work / "sweep").glob("*-plane-*.npz"))
     lists = sorted((work / "sweep").glob("*-pts-*.npz"))
@@ -168,17 +152,14 @@ def test_adaptive_planes_and_point_lists_are_verified_before_use(tmp_path, clien
     _resign(lists[1], lambda a: {k: v for k, v in a.items() if k != "cycles"})
     log = io.StringIO()
     run_study(study, out, client=client, progress=False, stream=log)
-    text = log.getvalue()
-    lines = _discarded(text)
-    for path, why in (
-        (planes[0], "field 'regime' has shape (1, 1), expected (48, 30)"),
+    expected = [
+        (planes[0], "field 'regime' has shape (1, 1), expected (64, 40)"),
         (planes[1], "has no field 'dissipation'"),
         (lists[0], "has shape (1,), expected"),
         (lists[1], "has no field 'cycles'"),
-    ):
-        assert sum(str(path) in ln and why in ln for ln in lines) == 1, (path, text)
-    assert len(lines) == 4, text
-    assert "Traceback" not in text and not work.exists()
+    ]
+    _assert_discarded(log.getvalue(), expected)
+    assert not work.exists()
     assert_same_result(out, clean)
 
 
@@ -221,7 +202,8 @@ def test_a_held_lock_refuses_a_second_process(tmp_path):
 
 def test_work_folder_deleted_mid_run_blocks_a_second_run(tmp_path):
     out = tmp_path / "long.nc"
-    first = _start_run(tmp_path, "-o", "long.nc", "--workers", "1", "--quiet")
+    longer = LONG.replace("num = 60", "num = 240").replace('"balanced"', '"exact"')
+    first = _start_run(tmp_path, "-o", "long.nc", "--workers", "1", "--quiet", study=longer)
     try:
         _wait_saved(out, 2, first)
         shutil.rmtree(out.with_name("long.nc.work"))
@@ -235,7 +217,8 @@ def test_work_folder_deleted_mid_run_blocks_a_second_run(tmp_path):
         )
         assert second.returncode == 2, second.stderr
         assert "another run is writing" in second.stderr and "Traceback" not in second.stderr
-        assert first.poll() is None  # the first run goes on
+        assert first.poll() is None, first.stderr.read()  # the first run goes on
+        _wait_saved(out, 2, first)  # and saves into a work folder made again
     finally:
         os.killpg(first.pid, signal.SIGINT)
         first.communicate(timeout=WAIT)
@@ -293,10 +276,14 @@ def test_os_fault_while_writing_one_line_older_result_untouched(
     out = tmp_path / "two.nc"
     out.write_bytes(b"an older result")
     real = netcdf._fill_units
+    calls = [0]
 
-    def failing(path, *args, **kwargs):
-        assert Path(path).exists()  # the temporary file is being written
-        raise _fault(kind)
+    def failing(group, *args, **kwargs):
+        calls[0] += 1
+        if calls[0] == 2:  # the second scene: the temporary file holds the first
+            assert Path(group.filepath()).exists()
+            raise _fault(kind)
+        return real(group, *args, **kwargs)
 
     monkeypatch.setattr(netcdf, "_fill_units", failing)
     with pytest.raises(StudyFailed) as err:
