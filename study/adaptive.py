@@ -53,6 +53,9 @@ VERIFY_SEED = 0
 PRINT_EVERY = 10.0
 #: Plane statistics saved with each plane (0-d or 1-d arrays in the plane file).
 STAT_NAMES = ("levels", "n_points", "verify_inferred", "verify_sampled", "verify_agree")
+#: Planes refined at the same time (in memory at once): the waves of one fill the
+#: workers while another waits for the last points of its wave.
+PLANES_AT_ONCE = 2
 #: Fraction of the points an adaptive scene is expected to simulate (planning only).
 ADAPTIVE_SIMULATED_FRACTION = 0.05
 
@@ -65,6 +68,7 @@ class PointList:
     key: str
     sl: slice
     task: dict = field(repr=False, compare=False)
+    sweep: tuple[int, ...] = ()  # the plane it belongs to
 
     @property
     def n_points(self) -> int:
@@ -177,17 +181,30 @@ class AdaptivePlan(ScenePlan):
         for key in work.keys(self.spec.name):
             if key not in keys:  # a point list: its fields and dtypes now, its length when used
                 work.reuse(self.spec.name, key, self.expected(None))
-        self._plane: _Plane | None = None
+        self._active: dict[tuple[int, ...], _Plane] = {}
         self.finished_points = reused * int(np.prod(self.spec.plane_shape))
         return len(keys), reused, self.finished_points
 
     def next_unit(self, work):
+        """A point list of any plane in refinement: while one plane waits for the last
+        points of its wave, the next plane's waves run (at most :data:`PLANES_AT_ONCE`
+        planes in memory)."""
         while True:
-            pl = self._plane
-            if pl is None:
-                if not self._missing:
-                    return None
-                pl = self._plane = self._start(self._missing.pop(0))
+            waiting = False
+            for pl in list(self._active.values()):
+                unit = self._next_of(pl, work)
+                if unit is not None and unit is not WAIT:
+                    return unit
+                waiting |= unit is WAIT
+            if self._missing and len(self._active) < PLANES_AT_ONCE:
+                sweep = self._missing.pop(0)
+                self._active[sweep] = self._start(sweep)
+                continue
+            return WAIT if waiting else None
+
+    def _next_of(self, pl: _Plane, work):
+        """The next point list of one plane, WAIT, or None when the plane is saved."""
+        while pl.sweep in self._active:
             if pl.pending:
                 unit = pl.pending.pop()
                 if work.reuse(unit.scene, unit.key, self.expected(unit)):
@@ -199,12 +216,13 @@ class AdaptivePlan(ScenePlan):
             if pl.outstanding:
                 return WAIT
             self._advance(pl, work)
+        return None
 
     def task(self, unit: PointList, axes=None) -> dict:
         return unit.task
 
     def accept(self, unit: PointList, arrays: dict[str, np.ndarray], work) -> None:
-        pl = self._plane
+        pl = self._active[unit.sweep]
         pl.outstanding.discard(unit.key)
         pl.computed += 1
         self._take(pl, unit, arrays)
@@ -276,7 +294,7 @@ class AdaptivePlan(ScenePlan):
                 "r": rr,
                 "beta": bb,
             }
-            out.append(PointList(self.spec.name, key, sl, task))
+            out.append(PointList(self.spec.name, key, sl, task, pl.sweep))
         return out
 
     def _finish(self, pl: _Plane, summary: VerificationSummary, work) -> None:
@@ -298,7 +316,7 @@ class AdaptivePlan(ScenePlan):
         fields["verify_agree"] = np.int64(summary.agree)
         work.save(self.spec.name, self.plane_key(pl.sweep, self._axes), fields)
         self.finished_points += ref.n_points
-        self._plane = None
+        del self._active[pl.sweep]
 
     def _where(self, pl: _Plane) -> str:
         return f"study: {self.spec.name}{list(pl.sweep) if pl.sweep else ''}"

@@ -80,6 +80,7 @@ class _Window:
         self.size = MIN_WINDOW
         self.next_look = 0.0
         self.shown = sum(p.finished_points for p in plans)
+        self.again: set[str] = set()  # units submitted a second time after a cancel
 
     def _resize(self) -> None:
         now = time.monotonic()
@@ -106,12 +107,15 @@ class _Window:
                     break
                 batch.append((p, unit))
         self.progress()
+        self.submit(batch)
+
+    def submit(self, batch: list[tuple[ScenePlan, object]], suffix: str = "") -> None:
         if not batch:
             return
         new = self.client.map(
             compute_chunk,
             [p.task(u) for p, u in batch],
-            key=[f"study-{u.key}" for _, u in batch],
+            key=[f"study-{u.key}{suffix}" for _, u in batch],
             retries=self.retries,
             pure=False,
         )
@@ -145,7 +149,14 @@ class _Window:
         except (KeyboardInterrupt, StudyFailed):  # StudyFailed: the watchdog's
             raise
         except BaseException as exc:  # CancelledError is not an Exception
-            unit = self.inflight[fut.key][2]
+            _, p, unit = self.inflight[fut.key]
+            if isinstance(exc, CancelledError) and unit.key not in self.again:
+                # a key cancelled by an earlier run on this client can still be
+                # cancelling when this run submits it: once more, under another key
+                self.again.add(unit.key)
+                del self.inflight[fut.key]
+                self.submit([(p, unit)], suffix="-again")
+                return None
             raise _failure(unit, exc, self.retries, str(self.work.path)) from None
 
 
@@ -174,7 +185,8 @@ def drive(
             except BaseException:  # one of them failed: fetch one by one to name it
                 results = [win.fetch_one(fut, watchdog) for fut in batch]
             for fut, arrays in zip(batch, results, strict=True):
-                win.arrived(fut, arrays)
+                if arrays is not None:  # None: submitted again (_Window.fetch_one)
+                    win.arrived(fut, arrays)
             win.fill()
     except BaseException:
         with suppress(TimeoutError):  # bounded: the scheduler may be the one that went silent

@@ -264,11 +264,11 @@ def test_adaptive_study_on_local_cluster_resumes_after_interruption(tmp_path, mo
         real_advance = AdaptivePlan._advance
         calls = [0]
 
-        def interrupted_advance(self, *args, **kwargs):
-            calls[0] += 1
+        def interrupted_advance(self, pl, *args, **kwargs):
+            calls[0] += pl.sweep == (0,)
             if calls[0] == 4:  # Ctrl-C when the third wave of the first plane is complete
                 raise KeyboardInterrupt
-            return real_advance(self, *args, **kwargs)
+            return real_advance(self, pl, *args, **kwargs)
 
         monkeypatch.setattr(AdaptivePlan, "_advance", interrupted_advance)
         with pytest.raises(StudyInterrupted):
