@@ -1,6 +1,7 @@
 """Modal data of a scene for the closed-form boundaries (independent of r and beta).
 
-Every configuration of :class:`tasks.scene.Scene` is written as (docs/theory.md 2)
+Every configuration of :class:`tasks.scene.Scene` is written as (docs/theory.md 2;
+a scene of matrices has a full symmetric ``Gamma``, docs/structures.md 1)
 
     M x'' + K x = p cos(tau) + F_c b,     M = r^2 Gamma,  Gamma = diag(gamma),
 
@@ -38,7 +39,7 @@ import numpy as np
 from scipy.linalg import eigh
 from scipy.sparse.csgraph import connected_components
 
-from tasks.model import scene_modes
+from tasks.model import inverse_mass_times, scene_modes
 from tasks.scene import Scene
 
 NOISE = 1e-13
@@ -98,14 +99,15 @@ def _clean(values: np.ndarray, bound: np.ndarray | float) -> np.ndarray:
 
 
 def _held_modes(
-    K: np.ndarray, gamma: np.ndarray, T: np.ndarray, g_load: np.ndarray, p_hat: np.ndarray
+    K: np.ndarray, G: np.ndarray, T: np.ndarray, g_load: np.ndarray, p_hat: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Eigenvalues and force residues of the held system, block by block."""
+    """Eigenvalues and force residues of the held system, block by block
+    (``G`` the mass matrix Gamma, diagonal for a chain, full for a structure)."""
     m = T.shape[1]
     if m == 0:
         return np.zeros(0), np.zeros(0)
     Ks = T.T @ K @ T
-    Gs = T.T @ (gamma[:, None] * T)
+    Gs = T.T @ G @ T
     a_row = g_load @ K @ T  # contact force per held coordinate (to be subtracted)
     p_s = T.T @ p_hat  # load on the held coordinates
     coupling = (np.abs(Ks) + np.abs(Gs)) > 0.0
@@ -138,16 +140,16 @@ def contact_modes(scene: Scene) -> ContactModes:
     ContactModes
     """
     sliding = scene_modes(scene)  # the simulator's modal data: one home for the modes
-    K, gamma, b = sliding.stiffness, sliding.gamma, sliding.b
+    K, G, b = sliding.stiffness, sliding.mass, sliding.b
     p_hat = sliding.p0  # e_1, or Gamma 1 for the base wall (times r^2)
     alpha = 2 if sliding.load_scales_r2 else 0
     lam, phi = sliding.lam.copy(), sliding.phi.copy()
     b_gamma_b, g_load = sliding.b_gamma_b, sliding.g_load
     # |phi_i . v| <= ||Gamma^-1/2 v|| because phi_i has unit Gamma-norm.
     cb = _clean(b @ phi, np.sqrt(b_gamma_b))
-    p0 = _clean(p_hat @ phi, np.sqrt(np.sum(p_hat * p_hat / gamma)))
+    p0 = _clean(p_hat @ phi, np.sqrt(p_hat @ inverse_mass_times(G, p_hat)))
     T = sliding.T
-    lam_s, z_s = _held_modes(K, gamma, T, g_load, p_hat)
+    lam_s, z_s = _held_modes(K, G, T, g_load, p_hat)
     for arr in (lam, phi, cb, p0, lam_s, z_s):
         arr.setflags(write=False)
     weights = cb * cb / np.sum(cb * cb)

@@ -7,7 +7,11 @@ events, exact stick phases, 100 excitation cycles from rest, absolute tolerance
 is used by :func:`tasks.classify`, it only measures what the compiled simulator
 buys (``benchmarks/bench_classify.py``, ``study bench``).
 
-One formulation covers every contact (:mod:`tasks.scene`, :mod:`tasks.model`):
+One formulation covers every contact (:mod:`tasks.scene`, :mod:`tasks.model`) and
+every scene of matrices (:meth:`tasks.scene.Scene.from_matrices`: full ``M`` and
+``K``, viscous damping ``C``, docs/structures.md 1). With damping this integrator
+is the independent reference of the damped simulator: the terms ``C x'`` are added
+to both phases and to the contact force ``g`` below (``- g_load . C x'``).
 
 * **sliding** with sign ``s`` of the contact velocity ``v = b . x'``::
 
@@ -81,38 +85,48 @@ class _System:
     b: np.ndarray
     minv_p: np.ndarray  # M^-1 p
     minv_k: np.ndarray  # M^-1 K
+    minv_c: np.ndarray  # M^-1 C (C = r C_hat, zeros when undamped)
     minv_b: np.ndarray  # M^-1 b
     g_p: float  # g_load . p
     g_k: np.ndarray  # g_load^T K
+    g_c: np.ndarray  # g_load^T C
     T: np.ndarray
     w: np.ndarray
     proj: np.ndarray  # (T^T Gamma T)^-1 T^T Gamma: q from x (momentum conserving)
     ms_inv_tp: np.ndarray  # (T^T M T)^-1 T^T p
     ms_inv_kt: np.ndarray  # (T^T M T)^-1 T^T K T
+    ms_inv_ct: np.ndarray  # (T^T M T)^-1 T^T C T
     ms_inv_kw: np.ndarray  # (T^T M T)^-1 T^T K w
     g_kt: np.ndarray  # g_load^T K T
+    g_ct: np.ndarray  # g_load^T C T
     g_kw: float  # g_load^T K w
 
 
 def _system(scene: Scene, r: float) -> _System:
+    """Plain numpy matrices of ``scene`` at ``r``: ``M = r^2 Gamma``, ``C = r C_hat``
+    (docs/structures.md 1, Eq. 1.1), full matrices allowed; nothing shared with the
+    simulator's modal data (:mod:`tasks.model`)."""
     n = scene.dof
     M = scene.mass_matrix(r)
+    G = scene.mass_matrix(1.0)
+    C = scene.damping_matrix(r)
     K = scene.stiffness_matrix()
     p = scene.load_vector(r)
     b = scene.contact_vector()
-    gam = scene.mass_ratios
-    g_load = (b / gam) / float(b @ (b / gam))
+    minv_b1 = np.linalg.solve(G, b)
+    g_load = minv_b1 / float(b @ minv_b1)
     T, w = scene.stuck_basis()
     m = T.shape[1]
     Ms = T.T @ M @ T
     if m:
         ms_inv_tp = np.linalg.solve(Ms, T.T @ p)
         ms_inv_kt = np.linalg.solve(Ms, T.T @ K @ T)
+        ms_inv_ct = np.linalg.solve(Ms, T.T @ C @ T)
         ms_inv_kw = np.linalg.solve(Ms, T.T @ K @ w)
-        proj = np.linalg.solve(T.T @ np.diag(gam) @ T, T.T @ np.diag(gam))
+        proj = np.linalg.solve(T.T @ G @ T, T.T @ G)
     else:
         ms_inv_tp = ms_inv_kw = np.zeros(0)
-        ms_inv_kt = np.zeros((0, 0))
+        ms_inv_kt = ms_inv_ct = np.zeros((0, 0))
         proj = np.zeros((0, n))
     return _System(
         n=n,
@@ -120,23 +134,30 @@ def _system(scene: Scene, r: float) -> _System:
         b=b,
         minv_p=np.linalg.solve(M, p),
         minv_k=np.linalg.solve(M, K),
+        minv_c=np.linalg.solve(M, C),
         minv_b=np.linalg.solve(M, b),
         g_p=float(g_load @ p),
         g_k=g_load @ K,
+        g_c=g_load @ C,
         T=T,
         w=w,
         proj=proj,
         ms_inv_tp=ms_inv_tp,
         ms_inv_kt=ms_inv_kt,
+        ms_inv_ct=ms_inv_ct,
         ms_inv_kw=ms_inv_kw,
         g_kt=g_load @ K @ T,
+        g_ct=g_load @ C @ T,
         g_kw=float(g_load @ K @ w),
     )
 
 
-def _contact_force(sys: _System, tau: float, x: np.ndarray) -> float:
-    """``g``: the force the contact must carry to stay stuck (tasks.model)."""
-    return sys.g_p * math.cos(tau) - float(sys.g_k @ x)
+def _contact_force(sys: _System, tau: float, x: np.ndarray, xd: np.ndarray | None = None) -> float:
+    """``g = g_load . (p cos tau - K x - C x')``: the force the contact must carry to
+    stay stuck (tasks.model; the viscous term is docs/structures.md 1; ``xd`` None:
+    at rest)."""
+    viscous = 0.0 if xd is None else float(sys.g_c @ xd)
+    return sys.g_p * math.cos(tau) - float(sys.g_k @ x) - viscous
 
 
 def _slide(sys, beta, s, tau0, tau1, x, xd, rtol, atol):
@@ -146,6 +167,7 @@ def _slide(sys, beta, s, tau0, tau1, x, xd, rtol, atol):
     A = np.zeros((2 * n, 2 * n))
     A[:n, n:] = np.eye(n)
     A[n:, :n] = -sys.minv_k
+    A[n:, n:] = -sys.minv_c
     c = np.concatenate((np.zeros(n), sys.minv_p))
     f = np.concatenate((np.zeros(n), -sys.minv_b * (beta * s)))
 
@@ -178,6 +200,7 @@ def _stick(sys, beta, tau0, tau1, d0, q, qd, rtol, atol):
         A = np.zeros((2 * m, 2 * m))
         A[:m, m:] = np.eye(m)
         A[m:, :m] = -sys.ms_inv_kt
+        A[m:, m:] = -sys.ms_inv_ct
         c = np.concatenate((np.zeros(m), sys.ms_inv_tp))
         f = np.concatenate((np.zeros(m), -static))
 
@@ -185,7 +208,8 @@ def _stick(sys, beta, tau0, tau1, d0, q, qd, rtol, atol):
             return A @ y + c * math.cos(t) + f
 
         def force(t, y):
-            return sys.g_p * math.cos(t) - float(sys.g_kt @ y[:m]) - g_static
+            gx = float(sys.g_kt @ y[:m]) + float(sys.g_ct @ y[m:])
+            return sys.g_p * math.cos(t) - gx - g_static
 
         y0 = np.concatenate((q, qd))
     else:  # SDOF: nothing moves; a dummy coordinate keeps the event machinery
@@ -281,7 +305,7 @@ def paper_method(
     x = np.zeros(n)
     xd = np.zeros(n)
     # at rest the contact velocity is zero: the stick test decides the first phase
-    g = _contact_force(sys, tau, x)
+    g = _contact_force(sys, tau, x, xd)
     mode = 0 if abs(g) <= beta else (1 if g > 0.0 else -1)
     nfev = transitions = stops = reversals = 0
     stick_time = 0.0
@@ -310,7 +334,7 @@ def paper_method(
                 break
             t1, x, xd, hit, nf = out
             if hit:
-                g = _contact_force(sys, t1, x)
+                g = _contact_force(sys, t1, x, xd)
                 if abs(g) <= beta:
                     mode = 0
                     stops += in_last and t1 < tau_end

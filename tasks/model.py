@@ -22,6 +22,13 @@ one formula) is
 
 and the contact stays stuck while ``|g| <= beta``. While sliding, the contact
 acceleration is ``b . x'' = (b^T Gamma^-1 b / r^2) (g - beta s)``.
+
+A scene of matrices (:meth:`tasks.scene.Scene.from_matrices`) has a full
+symmetric positive definite ``Gamma`` (its ``M``, docs/structures.md 1): every
+formula above holds as written with ``Gamma^-1`` a matrix inverse; a diagonal
+``Gamma`` (a chain, or a chain given by its matrices) takes the chain's own
+arithmetic, so both give bit-identical arrays. With damping, ``damping`` holds
+``C`` (the viscous term ``r C x'``, Eq. 1.1 of docs/structures.md).
 """
 
 from __future__ import annotations
@@ -57,6 +64,7 @@ class SceneModes:
 
     n: int
     gamma: np.ndarray
+    mass: np.ndarray
     stiffness: np.ndarray
     b: np.ndarray
     p0: np.ndarray
@@ -78,13 +86,30 @@ class SceneModes:
     g_modes_s: np.ndarray
     g_d0: float
     b_gamma_b: float
+    damping: np.ndarray | None = None
+    damping_kind: str = "none"
 
     def load(self, r: float) -> np.ndarray:
         """Amplitude p of the harmonic load at frequency ratio r."""
         return self.p0 * (r * r) if self.load_scales_r2 else self.p0
 
     def kernel_args(self) -> tuple:
-        """The arrays in the order :func:`tasks.kernel.run_points` takes them."""
+        """The arrays in the order :func:`tasks.kernel.run_points` takes them.
+
+        ``gamma`` is the diagonal of the mass matrix: the kernel uses it only for
+        the energy scale of seeded random starts (exact for a diagonal mass).
+
+        Raises
+        ------
+        ValueError
+            For a damped scene: the compiled simulator propagates undamped phases
+            only (the damped reference is :mod:`tasks.baseline`).
+        """
+        if self.damping is not None:
+            raise ValueError(
+                "damping: the compiled simulator does not handle damped scenes yet "
+                "(use tasks.baseline.paper_method for them)"
+            )
         c = np.ascontiguousarray
         return (
             c(self.gamma),
@@ -119,28 +144,39 @@ def generalized_modes(K: np.ndarray, G: np.ndarray) -> tuple[np.ndarray, np.ndar
     return lam, phi
 
 
+def inverse_mass_times(G: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``Gamma^-1 v``: elementwise for a diagonal ``Gamma`` (the chain's arithmetic)."""
+    d = np.diag(G)
+    if np.array_equal(G, np.diag(d)):
+        return v / d
+    return np.linalg.solve(G, v)
+
+
 def scene_modes(scene: Scene) -> SceneModes:
     """Modal data of ``scene`` (see :class:`SceneModes`)."""
     K = scene.stiffness_matrix()
-    gam = scene.mass_ratios
-    G = np.diag(gam)
+    G = scene.mass_matrix(1.0)
+    gam = np.diag(G).copy()
     b = scene.contact_vector()
     T, w = scene.stuck_basis()
     lam, phi = generalized_modes(K, G)
     Gs = T.T @ G @ T
     Ks = T.T @ K @ T
     lam_s, phi_s = generalized_modes(Ks, Gs)
-    b_gamma_b = float(b @ (b / gam))
-    g_load = (b / gam) / b_gamma_b
+    g_b = inverse_mass_times(G, b)
+    b_gamma_b = float(b @ g_b)
+    g_load = g_b / b_gamma_b
     m = T.shape[1]
     proj = np.linalg.solve(Gs, T.T @ G) if m else np.zeros((0, scene.dof))
+    s = scene.structure
     return SceneModes(
         n=scene.dof,
         gamma=gam,
+        mass=G,
         stiffness=K,
         b=b,
         p0=scene.load_vector(1.0),
-        load_scales_r2=scene.contact == "base",
+        load_scales_r2=scene.load_scales_r2,
         lam=lam,
         phi=phi,
         phi_t_gamma=phi.T @ G,
@@ -158,4 +194,6 @@ def scene_modes(scene: Scene) -> SceneModes:
         g_modes_s=(g_load @ K @ T) @ phi_s if m else np.zeros(0),
         g_d0=float(g_load @ K @ w),
         b_gamma_b=b_gamma_b,
+        damping=None if s is None or s.damping is None else np.array(s.damping),
+        damping_kind="none" if s is None else s.damping_kind,
     )

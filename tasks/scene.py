@@ -22,6 +22,16 @@ the contact (Fig. 16a), and the chain may have any number of masses.
 While stuck, ``b . x`` is frozen: ``x = T q + d0 w`` with ``b^T T = 0`` and
 ``b^T w = 1``; the stuck mass leaves the state (ground, base) or the pair merges
 into one mass (mass contact), so only N - 1 coordinates move (Eqs. 131-135).
+
+**Any linear structure** (docs/structures.md 1): :meth:`Scene.from_matrices`
+takes the matrices of the dimensionless equation
+
+    r^2 M x'' + r C x' + K x + beta s b = p cos(tau),
+
+with ``M``, ``C``, ``K`` in units of a reference mass, damping and stiffness
+(a chain: ``M = diag(gamma)``, Eq. 68; ``K`` of Eq. 69; no damping), so that a
+chain is the special case (:meth:`Scene.matrices`). Its validation and storage
+live in :mod:`tasks.matrices`.
 """
 
 from __future__ import annotations
@@ -32,7 +42,11 @@ from numbers import Real
 
 import numpy as np
 
+from tasks.matrices import StructureMatrices, structure_matrices
+
 CONTACTS = ("ground", "base", "mass")
+#: The contact of a scene given by its matrices (:meth:`Scene.from_matrices`).
+MATRICES = "matrices"
 
 
 #: Range of the mass and stiffness ratios gamma_i, kappa_i (Eqs. 66-67) where the
@@ -116,8 +130,47 @@ class Scene:
     kappa: float | tuple[float, ...] = 1.0
     gammas: tuple[float, ...] = field(init=False, repr=False, compare=False)
     kappas: tuple[float, ...] = field(init=False, repr=False, compare=False)
+    structure: StructureMatrices | None = field(default=None, repr=False)
+
+    @classmethod
+    def from_matrices(cls, mass, stiffness, load, contact, *, damping=None) -> Scene:
+        """A scene of any linear structure (docs/structures.md 1, Eq. 1.1).
+
+        ``r^2 M x'' + r C x' + K x + beta s b = p cos(tau)``, with M, C, K in units
+        of a reference mass, damping and stiffness (a chain: :meth:`matrices`).
+
+        Parameters
+        ----------
+        mass, stiffness : array_like (n, n)
+            ``M`` and ``K``: symmetric positive definite.
+        load : array_like (n,) or ("base", u)
+            The load amplitude ``p``, or a base excitation with influence vector
+            ``u`` (coordinates relative to the supports, ``p = r^2 M u``).
+        contact : ("ground", j) or ("between", i, j)
+            ``b = e_j`` or ``b = e_j - e_i``; DOF indices from 0.
+        damping : None, array_like (n, n), ("rayleigh", a, b) or ("modal", zeta)
+            ``C``, symmetric positive semidefinite; ``a M + b K``; or damping
+            ratios of the modes of ``(K, M)`` (one number for all, or n numbers).
+
+        Raises
+        ------
+        ValueError
+            One line naming the argument and the rule it breaks.
+        """
+        data = structure_matrices(mass, stiffness, load, contact, damping)
+        return cls(MATRICES, data.dof, data.contact[-1] + 1, structure=data)
 
     def __post_init__(self) -> None:
+        if self.contact == MATRICES or self.structure is not None:
+            if self.contact != MATRICES or not isinstance(self.structure, StructureMatrices):
+                raise ValueError("contact: a scene of matrices is made by Scene.from_matrices(...)")
+            object.__setattr__(self, "dof", self.structure.dof)
+            object.__setattr__(self, "contact_mass", self.structure.contact[-1] + 1)
+            object.__setattr__(self, "gamma", 1.0)
+            object.__setattr__(self, "kappa", 1.0)
+            object.__setattr__(self, "gammas", ())
+            object.__setattr__(self, "kappas", ())
+            return
         if self.contact not in CONTACTS:
             raise ValueError(f"contact: must be one of {CONTACTS}, got {self.contact!r}")
         if isinstance(self.dof, bool) or not isinstance(self.dof, int | np.integer):
@@ -149,11 +202,60 @@ class Scene:
     # ------------------------------------------------------------------ labels
     @property
     def label(self) -> str:
-        """Short name such as ``2dof_ground_m1`` or ``2dof_mass_m1``."""
+        """Short name such as ``2dof_ground_m1``, ``2dof_mass_m1`` or, for a
+        structure, ``12dof_matrices_ground_x11`` (``_damped`` if damped)."""
+        if self.structure is not None:
+            kind, *idx = self.structure.contact
+            where = "_".join(f"x{i}" for i in idx)
+            damped = "" if self.structure.damping is None else "_damped"
+            return f"{self.dof}dof_{MATRICES}_{kind}_{where}{damped}"
         return f"{self.dof}dof_{self.contact}_m{self.contact_mass}"
+
+    @property
+    def damped(self) -> bool:
+        """True when the scene has viscous damping (only scenes of matrices)."""
+        return self.structure is not None and self.structure.damping is not None
+
+    def matrices(self) -> dict[str, object]:
+        """The keyword arguments of :meth:`from_matrices` that make this scene.
+
+        A chain gives ``M = diag(gamma)`` (Eq. 68), ``K`` of Eq. 69 and no damping;
+        its load is ``e_1`` (ground wall, mass contact) or ``("base", 1)`` (base
+        wall, Eq. 98: ``p = r^2 M 1`` in coordinates relative to the base), its
+        contact ``("ground", j - 1)`` (ground or base wall: in the base's
+        coordinates the wall is fixed) or ``("between", j - 1, j)`` (mass contact).
+        """
+        if self.structure is not None:
+            return self.structure.kwargs()
+        j = self.contact_mass - 1
+        if self.contact == "base":
+            load: object = ("base", np.ones(self.dof))
+        else:
+            load = self.load_vector(1.0)
+        contact = ("between", j, j + 1) if self.contact == "mass" else ("ground", j)
+        return {
+            "mass": np.diag(self.mass_ratios),
+            "stiffness": self.stiffness_matrix(),
+            "load": load,
+            "contact": contact,
+            "damping": None,
+        }
 
     def to_dict(self) -> dict[str, object]:
         """Plain-data description (for provenance and study files)."""
+        if self.structure is not None:
+            s = self.structure
+
+            def plain(v):
+                if isinstance(v, np.ndarray):
+                    return v.tolist()
+                if isinstance(v, tuple):
+                    return [plain(x) for x in v]
+                return v
+
+            kw = {k: plain(v) for k, v in s.kwargs().items()}
+            kw["contact_dofs"] = kw.pop("contact")  # from_matrices(contact=...)
+            return {"contact": MATRICES, "dof": self.dof, "contact_mass": self.contact_mass, **kw}
         return {
             "contact": self.contact,
             "dof": self.dof,
@@ -163,26 +265,52 @@ class Scene:
         }
 
     # ---------------------------------------------------------------- matrices
+    def _chain_only(self, what: str) -> None:
+        if self.structure is not None:
+            raise ValueError(f"{what}: a scene of matrices has no chain ratios (use mass_matrix)")
+
     @property
     def mass_ratios(self) -> np.ndarray:
-        """gamma_1..gamma_N with gamma_1 = 1 (Eq. 66)."""
+        """gamma_1..gamma_N with gamma_1 = 1 (Eq. 66); chains only."""
+        self._chain_only("mass_ratios")
         return np.array(self.gammas)
 
     @property
     def stiffness_ratios(self) -> np.ndarray:
-        """kappa_1..kappa_N with kappa_1 = 1 (Eq. 67)."""
+        """kappa_1..kappa_N with kappa_1 = 1 (Eq. 67); chains only."""
+        self._chain_only("stiffness_ratios")
         return np.array(self.kappas)
 
     def mass_matrix(self, r: float = 1.0) -> np.ndarray:
-        """M = r^2 diag(gamma) (Eq. 68)."""
+        """M = r^2 diag(gamma) (Eq. 68); a structure: r^2 M (Eq. 1.1)."""
+        if self.structure is not None:
+            return r * r * self.structure.mass
         return r * r * np.diag(self.mass_ratios)
+
+    def damping_matrix(self, r: float = 1.0) -> np.ndarray:
+        """``r C`` of Eq. 1.1 (zeros when undamped)."""
+        if self.structure is None or self.structure.damping is None:
+            return np.zeros((self.dof, self.dof))
+        return r * self.structure.damping
 
     def stiffness_matrix(self) -> np.ndarray:
         """Tridiagonal K of Eq. 69: K[i,i] = kappa_i + kappa_(i+1), K[i,i+1] = -kappa_(i+1)."""
+        if self.structure is not None:
+            return self.structure.stiffness.copy()
         return stiffness_matrix(self.stiffness_ratios)
+
+    @property
+    def load_scales_r2(self) -> bool:
+        """The load is inertial, ``p = r^2 p_hat`` (base wall, base load of a structure)."""
+        if self.structure is not None:
+            return self.structure.load_scales_r2
+        return self.contact == "base"
 
     def load_vector(self, r: float = 1.0) -> np.ndarray:
         """Amplitude p of the harmonic load p cos(tau) in the scene's coordinates."""
+        if self.structure is not None:
+            s = self.structure
+            return r * r * s.load if s.load_scales_r2 else s.load.copy()
         n = self.dof
         if self.contact == "base":
             return r * r * self.mass_ratios  # M 1 (Eq. 98, docs/theory.md 2)
@@ -192,6 +320,8 @@ class Scene:
 
     def contact_vector(self) -> np.ndarray:
         """Direction b of the contact force: the slip velocity is b . x'."""
+        if self.structure is not None:
+            return self.structure.b.copy()
         b = np.zeros(self.dof)
         j = self.contact_mass - 1
         if self.contact == "mass":
@@ -207,25 +337,33 @@ class Scene:
         Ground/base: T drops coordinate j (Eq. 131). Mass: T merges masses j and
         j + 1 into one coordinate (Eqs. 134-135).
         """
-        n = self.dof
         j = self.contact_mass - 1
-        cols = []
-        for i in range(n):
-            if i == j:
-                if self.contact == "mass":
-                    col = np.zeros(n)
-                    col[j] = col[j + 1] = 1.0
-                    cols.append(col)
-                continue
-            if self.contact == "mass" and i == j + 1:
-                continue
-            col = np.zeros(n)
-            col[i] = 1.0
-            cols.append(col)
-        T = np.array(cols).T if cols else np.zeros((n, 0))
-        w = np.zeros(n)
-        w[j + 1 if self.contact == "mass" else j] = 1.0
-        return T, w
+        if self.structure is not None:
+            return stuck_basis(self.dof, self.structure.contact[1:])
+        return stuck_basis(self.dof, (j, j + 1) if self.contact == "mass" else (j,))
+
+
+def stuck_basis(n: int, dofs: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """``x = T q + d0 w`` for a contact on ``dofs``: ``(j,)`` (``b = e_j``, T drops
+    coordinate j) or ``(i, j)`` (``b = e_j - e_i``, T merges i and j into one
+    coordinate at the place of the first of them); ``w = e_j``."""
+    j = dofs[-1]
+    first, second = (min(dofs), max(dofs)) if len(dofs) == 2 else (j, -1)
+    cols = []
+    for i in range(n):
+        if i == second:
+            continue
+        col = np.zeros(n)
+        col[i] = 1.0
+        if i == first and len(dofs) == 2:
+            col[second] = 1.0
+        elif i == first:
+            continue
+        cols.append(col)
+    T = np.array(cols).T if cols else np.zeros((n, 0))
+    w = np.zeros(n)
+    w[j] = 1.0
+    return T, w
 
 
 #: The configurations of the paper (Sects. 2-4; the configs of tests/data), ratios 1:
