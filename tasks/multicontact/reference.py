@@ -45,6 +45,7 @@ class _System:
         self.r2 = r * r
         self.betas = np.array(scene.beta_ratio) * beta
         self.n, self.k = self.B.shape
+        self.operators = {}
 
     def forces(self, tau, x, stuck, signs):
         """``(f - B_S g_S, g)``: the net force and the stuck contacts' forces."""
@@ -145,7 +146,10 @@ def _phase(sys: _System, tau0, tau1, y0, stuck, signs):
     """Exact propagation by the matrix exponential (scanned in steps of a 32nd of
     the fastest half-period, roots by brentq); ``(tau, y, fired contacts)``."""
     n = sys.n
-    A, E, h, step = _operator(sys, stuck, signs)
+    key = (tuple(stuck), tuple(signs.get(c, 0.0) for c in range(sys.k)))
+    if key not in sys.operators:
+        sys.operators[key] = _operator(sys, stuck, signs)
+    A, E, h, step = sys.operators[key]
     z = np.concatenate([y0, [math.cos(tau0), math.sin(tau0), 1.0]])
     f0 = _event_values(sys, E, z, stuck, signs)
     t = 0.0
@@ -162,7 +166,12 @@ def _phase(sys: _System, tau0, tau1, y0, stuck, signs):
                 def fc(u, c=c, z=z):
                     return _event_values(sys, E, expm(A * u) @ z, stuck, signs)[c]
 
-                roots.append(brentq(fc, 0.0, dt, xtol=1e-14, rtol=1e-15))
+                root = brentq(fc, 0.0, dt, xtol=1e-14, rtol=1e-15)
+                # the far side of the zero (the event function <= 0), where the
+                # decision is taken: at an unsticking |g| = beta leaves a = 0
+                while fc(root) >= 0.0 and root < dt:
+                    root = min(dt, root + 1e-13 * (1.0 + root))
+                roots.append(root)
             u = min(roots)
             fired = [c for c, rt in zip(crossing, roots, strict=True) if rt <= u + 1e-9]
             z = expm(A * u) @ z
