@@ -152,6 +152,9 @@ def _phase(sys: _System, tau0, tau1, y0, stuck, signs):
     A, E, h, step = sys.operators[key]
     z = np.concatenate([y0, [math.cos(tau0), math.sin(tau0), 1.0]])
     f0 = _event_values(sys, E, z, stuck, signs)
+    over = [c for c in stuck if f0[c] < -1e-12 * sys.betas[c]]
+    if over:  # a stuck contact already past its limit: decide again at once
+        return tau0, y0, over
     t = 0.0
     total = tau1 - tau0
     while t < total:
