@@ -214,3 +214,19 @@ def test_constructors_and_errors():
         Scene(["ground", "base"], 2, contact_mass=[1, 2])
     res = classify(chain, [0.8, 1.5], 0.4)  # tasks.classify dispatches
     assert res.regime.shape == (2, 2) and res.combined.shape == (2,)
+
+
+def test_held_and_rest_starts_reach_the_same_regimes():
+    """One regime per point (docs/theory.md 3, the sum over contacts of docs/contacts.md 4):
+    the monotonicity of friction makes coexisting periodic motions share their
+    stick and slip intervals, so the start cannot change a contact's regime."""
+    M, K, p = random_structure(41, 3)
+    scene = MultiScene.from_matrices(
+        M, K, p, [("ground", 0), ("between", 1, 2)], beta_ratio=[1.0, 0.6]
+    )
+    r, beta = points(41, 60, K, M)
+    res = classify_multi(scene, r, beta, starts=("held", "rest"))
+    both = res.converged & np.all(res.regime_rest >= 0, axis=-1)
+    assert both.mean() > 0.9
+    np.testing.assert_array_equal(res.regime[both], res.regime_rest[both])
+    assert not res.start_dependent.any()
