@@ -172,8 +172,11 @@ def _phase(sys: _System, tau0, tau1, y0, stuck, signs):
                 root = brentq(fc, 0.0, dt, xtol=1e-14, rtol=1e-15)
                 # the far side of the zero (the event function <= 0), where the
                 # decision is taken: at an unsticking |g| = beta leaves a = 0
+                # (1e-10 past the zero: the slip acceleration, 0 at the zero of an
+                # unsticking, then stands well above the rounding of the forces)
+                root = min(dt, root + 1e-10)
                 while fc(root) >= 0.0 and root < dt:
-                    root = min(dt, root + 1e-13 * (1.0 + root))
+                    root = min(dt, root + 1e-10)
                 roots.append(root)
             u = min(roots)
             fired = [c for c, rt in zip(crossing, roots, strict=True) if rt <= u + 1e-9]
