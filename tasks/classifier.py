@@ -126,6 +126,10 @@ def classify(
         0..``BETA_MAX`` (1e6), non-finite values, strings or booleans for r or
         beta, bad settings (:data:`tasks.fidelity.LIMITS`).
     """
+    if type(scene).__name__ == "MultiScene":  # several contacts (docs/contacts.md)
+        from tasks.multicontact import classify_multi
+
+        return classify_multi(scene, r, beta, fidelity, **settings)
     if not isinstance(scene, Scene):
         raise ValueError(f"scene: must be a tasks.Scene, got {type(scene).__name__}")
     if not isinstance(fidelity, str):

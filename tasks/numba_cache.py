@@ -45,6 +45,9 @@ from typing import TextIO
 _PACKAGE = Path(__file__).resolve().parent
 #: Sources compiled into the kernel, relative to the ``tasks`` package.
 KERNEL_SOURCES = ("kernel/*.py", "regimes.py")
+#: Sources compiled into the several-contact simulator (:mod:`tasks.multicontact`),
+#: which calls the kernel's functions: its key covers both.
+MULTICONTACT_SOURCES = (*KERNEL_SOURCES, "multicontact/*.py")
 #: How long the first compile takes, as the announcements say it (measured on
 #: 2 cores: 38 s at a load average of 2, 80 s at 3.6, up to 100 s busier).
 COMPILE_TIME = "40 s to 2 min on 2 cores, depending on the load"
@@ -96,14 +99,15 @@ def configure() -> str | None:
     return str(folder)
 
 
-def kernel_key(package: Path = _PACKAGE) -> str:
-    """Hash of the kernel's sources (:data:`KERNEL_SOURCES` under ``package``) and of
-    the Python, numba and numpy versions: the name of the kernel's cache folder."""
+def kernel_key(package: Path = _PACKAGE, sources: tuple[str, ...] = KERNEL_SOURCES) -> str:
+    """Hash of the kernel's sources (:data:`KERNEL_SOURCES` under ``package``, or
+    ``sources``) and of the Python, numba and numpy versions: the name of the
+    kernel's cache folder."""
     import numba
     import numpy
 
     digest = hashlib.sha256()
-    for pattern in KERNEL_SOURCES:
+    for pattern in sources:
         for path in sorted(package.glob(pattern)):
             digest.update(path.relative_to(package).as_posix().encode() + b"\0")
             digest.update(path.read_bytes() + b"\0")
@@ -112,19 +116,24 @@ def kernel_key(package: Path = _PACKAGE) -> str:
     return digest.hexdigest()[:16]
 
 
-def kernel_cache_folder(package: Path = _PACKAGE) -> Path:
-    """The folder numba caches the kernel in: ``kernel-<key>`` in the base folder."""
+def kernel_cache_folder(
+    package: Path = _PACKAGE, sources: tuple[str, ...] = KERNEL_SOURCES, name: str = "kernel"
+) -> Path:
+    """The folder numba caches the kernel in: ``kernel-<key>`` in the base folder
+    (``<name>-<key>`` of ``sources`` for another compiled package)."""
     base = os.environ.get("NUMBA_CACHE_DIR") or str(package / "__pycache__")
-    return Path(base) / f"kernel-{kernel_key(package)}"
+    return Path(base) / f"{name}-{kernel_key(package, sources)}"
 
 
 @contextmanager
-def kernel_cache(package: Path = _PACKAGE) -> Iterator[Path]:
+def kernel_cache(
+    package: Path = _PACKAGE, sources: tuple[str, ...] = KERNEL_SOURCES, name: str = "kernel"
+) -> Iterator[Path]:
     """Within the block, functions decorated with ``cache=True`` are cached in
     :func:`kernel_cache_folder` (numba's ``config.CACHE_DIR``, restored after)."""
     import numba.core.config
 
-    folder = kernel_cache_folder(package)
+    folder = kernel_cache_folder(package, sources, name)
     previous = numba.core.config.CACHE_DIR
     numba.core.config.CACHE_DIR = str(folder)
     try:

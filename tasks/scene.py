@@ -138,8 +138,19 @@ class Scene:
     kappas: tuple[float, ...] = field(init=False, repr=False, compare=False)
     structure: StructureMatrices | None = field(default=None, repr=False)
 
+    def __new__(cls, *args, **kwargs):
+        # a list of contact masses: several contacts (tasks.multicontact, docs/contacts.md)
+        masses = kwargs.get("contact_mass", args[2] if len(args) > 2 else None)
+        if isinstance(masses, list | tuple):
+            from tasks.multicontact import MultiScene
+
+            return MultiScene.chain(*args, **kwargs)
+        return super().__new__(cls)
+
     @classmethod
-    def from_matrices(cls, mass, stiffness, load, contact, *, damping=None) -> Scene:
+    def from_matrices(
+        cls, mass, stiffness, load, contact, *, damping=None, beta_ratio=None
+    ) -> Scene:
         """A scene of any linear structure (docs/structures.md 1, Eq. 1.1).
 
         ``r^2 M x'' + r C x' + K x + beta s b = p cos(tau)``, with M, C, K in units
@@ -162,7 +173,18 @@ class Scene:
         ------
         ValueError
             One line naming the argument and the rule it breaks.
+
+        A list of contacts (``[("ground", 1), ("between", 2, 3)]``) with
+        ``beta_ratio`` gives a :class:`tasks.multicontact.MultiScene` (docs/contacts.md).
         """
+        if beta_ratio is not None or (
+            isinstance(contact, list | tuple) and contact and not isinstance(contact[0], str)
+        ):
+            from tasks.multicontact import MultiScene
+
+            return MultiScene.from_matrices(
+                mass, stiffness, load, contact, beta_ratio=beta_ratio, damping=damping
+            )
         data = structure_matrices(mass, stiffness, load, contact, damping)
         return cls(MATRICES, data.dof, data.contact[-1] + 1, structure=data)
 

@@ -1,0 +1,275 @@
+"""An independent reference for several contacts: scipy's integrator with events.
+
+Nothing here shares code with the compiled simulator beyond the scene: the
+motion is propagated in the full coordinates ``x`` by the matrix exponential of
+the state space ``(x, x', cos tau, sin tau, 1)`` (exact for each linear phase;
+scanned in steps of a 32nd of the fastest half-period, events by brentq) with
+the stuck contacts' forces as Lagrange multipliers,
+
+    r^2 G x'' = f - B_S g_S,   g_S = (B_S^T G^-1 B_S)^-1 B_S^T G^-1 f,
+    f = p cos(tau) - K x - sum_(c sliding) beta_c s_c b_c,
+
+with events at ``b_c . x' = 0`` (sliding c) and ``|g_c| = beta_c`` (stuck c). The
+set after an event is chosen by the rule of docs/contacts.md 3 written
+afresh (plain numpy enumeration). The held start solves the KKT system
+``[[K - r^2 G, B], [B^T, 0]]``. Cycles run until the section state repeats
+(period 1 or 2, relative 1e-7) or ``max_cycles``; each contact's regime is read
+from the last period (stuck throughout: no motion; stuck for more than 1e-6
+at a time: stick-slip; else continuous). Slow (a pure Python loop): for
+tests only.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+from scipy.linalg import expm
+from scipy.optimize import brentq
+
+from tasks import regimes
+from tasks.multicontact.scene import MultiScene
+
+SECTION_RTOL = 1e-7
+STICK_MIN = 1e-6
+
+
+class _System:
+    def __init__(self, scene: MultiScene, r: float, beta: float):
+        self.G = scene.mass_matrix(1.0)
+        self.Ginv = np.linalg.inv(self.G)
+        self.K = scene.stiffness_matrix()
+        self.B = scene.contact_vectors()
+        self.p = scene.load_vector(r)
+        self.r2 = r * r
+        self.betas = np.array(scene.beta_ratio) * beta
+        self.n, self.k = self.B.shape
+        self.operators = {}
+
+    def forces(self, tau, x, stuck, signs):
+        """``(f - B_S g_S, g)``: the net force and the stuck contacts' forces."""
+        f = self.p * math.cos(tau) - self.K @ x
+        for c in range(self.k):
+            if c not in stuck:
+                f = f - self.betas[c] * signs[c] * self.B[:, c]
+        g = np.zeros(self.k)
+        if stuck:
+            Bs = self.B[:, list(stuck)]
+            gs = np.linalg.solve(Bs.T @ self.Ginv @ Bs, Bs.T @ self.Ginv @ f)
+            g[list(stuck)] = gs
+            f = f - Bs @ gs
+        return f, g
+
+    def decide(self, tau, x, candidates, signs):
+        """Fewest sliding candidates first; stuck |g| <= beta, sliding s a > 0."""
+        best = None
+        for n_slide in range(len(candidates) + 1):
+            for sliding in itertools.combinations(candidates, n_slide):
+                for sg in itertools.product((1.0, -1.0), repeat=n_slide):
+                    trial = dict(signs)
+                    trial.update(dict(zip(sliding, sg, strict=True)))
+                    stuck = tuple(c for c in candidates if c not in sliding)
+                    f, g = self.forces(tau, x, stuck, trial)
+                    a = self.B.T @ (self.Ginv @ f)
+                    ok = all(abs(g[c]) <= self.betas[c] for c in stuck)
+                    ok = ok and all(trial[c] * a[c] > 0.0 for c in sliding)
+                    if ok:
+                        return stuck, trial
+                    viol = max(
+                        [abs(g[c]) - self.betas[c] for c in stuck]
+                        + [-trial[c] * a[c] for c in sliding]
+                        + [-np.inf]
+                    )
+                    if best is None or viol < best[0]:
+                        best = (viol, stuck, trial)
+        return best[1], best[2]
+
+    def held(self):
+        """The held start at tau = 0: KKT of the held forced response."""
+        active = [c for c in range(self.k) if self.betas[c] > 0.0]
+        Ba = self.B[:, active]
+        m = len(active)
+        A = np.block([[self.K - self.r2 * self.G, Ba], [Ba.T, np.zeros((m, m))]])
+        rhs = np.concatenate([self.p, np.zeros(m)])
+        return np.linalg.solve(A, rhs)[: self.n]
+
+
+def _operator(sys: _System, stuck, signs):
+    """``z' = A z`` for ``z = (x, x', cos tau, sin tau, 1)``, and the event rows:
+    ``E z`` gives every contact's force (stuck) or velocity (sliding)."""
+    n, k = sys.n, sys.k
+    H = np.zeros((k, n))
+    P = np.eye(n)
+    if stuck:
+        Bs = sys.B[:, list(stuck)]
+        Hs = np.linalg.solve(Bs.T @ sys.Ginv @ Bs, Bs.T @ sys.Ginv)
+        H[list(stuck)] = Hs
+        P = P - Bs @ Hs
+    fslide = np.zeros(n)
+    for c in range(k):
+        if c not in stuck:
+            fslide -= sys.betas[c] * signs.get(c, 0.0) * sys.B[:, c]
+    m = 2 * n + 3
+    A = np.zeros((m, m))
+    A[:n, n : 2 * n] = np.eye(n)
+    GP = sys.Ginv @ P / sys.r2
+    A[n : 2 * n, :n] = -GP @ sys.K
+    A[n : 2 * n, 2 * n] = GP @ sys.p
+    A[n : 2 * n, 2 * n + 2] = GP @ fslide
+    A[2 * n, 2 * n + 1] = -1.0  # (cos)' = -sin
+    A[2 * n + 1, 2 * n] = 1.0  # (sin)' = cos
+    E = np.zeros((k, m))
+    for c in range(k):
+        if c in stuck:
+            E[c, :n] = -H[c] @ sys.K
+            E[c, 2 * n] = H[c] @ sys.p
+            E[c, 2 * n + 2] = H[c] @ fslide
+        else:
+            E[c, n : 2 * n] = sys.B[:, c]
+    omega = np.sqrt(np.abs(np.linalg.eigvals(A[n : 2 * n, :n]))).max(initial=1.0)
+    h = math.pi / (32.0 * max(omega, 1.0))
+    return A, E, h, expm(A * h)
+
+
+def _event_values(sys, E, z, stuck, signs):
+    y = E @ z
+    out = np.full(sys.k, np.inf)
+    for c in range(sys.k):
+        if sys.betas[c] == 0.0:
+            continue
+        out[c] = sys.betas[c] - abs(y[c]) if c in stuck else signs[c] * y[c]
+    return out
+
+
+def _phase(sys: _System, tau0, tau1, y0, stuck, signs):
+    """Exact propagation by the matrix exponential (scanned in steps of a 32nd of
+    the fastest half-period, roots by brentq); ``(tau, y, fired contacts)``."""
+    n = sys.n
+    key = (tuple(stuck), tuple(signs.get(c, 0.0) for c in range(sys.k)))
+    if key not in sys.operators:
+        sys.operators[key] = _operator(sys, stuck, signs)
+    A, E, h, step = sys.operators[key]
+    z = np.concatenate([y0, [math.cos(tau0), math.sin(tau0), 1.0]])
+    f0 = _event_values(sys, E, z, stuck, signs)
+    over = [c for c in stuck if f0[c] < -1e-12 * sys.betas[c]]
+    if over:  # a stuck contact already past its limit: decide again at once
+        return tau0, y0, over
+    t = 0.0
+    total = tau1 - tau0
+    while t < total:
+        dt = min(h, total - t)
+        z1 = step @ z if dt == h else expm(A * dt) @ z
+        f1 = _event_values(sys, E, z1, stuck, signs)
+        crossing = [c for c in range(sys.k) if f0[c] > 0.0 and f1[c] <= 0.0]
+        if crossing:
+            roots = []
+            for c in crossing:
+
+                def fc(u, c=c, z=z):
+                    return _event_values(sys, E, expm(A * u) @ z, stuck, signs)[c]
+
+                root = brentq(fc, 0.0, dt, xtol=1e-14, rtol=1e-15)
+                # the far side of the zero (the event function <= 0), where the
+                # decision is taken: at an unsticking |g| = beta leaves a = 0
+                # (1e-10 past the zero: the slip acceleration, 0 at the zero of an
+                # unsticking, then stands well above the rounding of the forces)
+                root = min(dt, root + 1e-10)
+                while fc(root) >= 0.0 and root < dt:
+                    root = min(dt, root + 1e-10)
+                roots.append(root)
+            u = min(roots)
+            fired = [c for c, rt in zip(crossing, roots, strict=True) if rt <= u + 1e-9]
+            z = expm(A * u) @ z
+            return tau0 + t + u, z[: 2 * n], fired
+        z, f0, t = z1, f1, t + dt
+    return tau1, z[: 2 * n], []
+
+
+def _cycle(sys: _System, y, stuck, signs, stats):
+    """One period from tau = 0; per contact: stuck time, longest stick, slip."""
+    n = sys.n
+    tau = 0.0
+    stick_start = {c: (0.0 if c in stuck else None) for c in range(sys.k)}
+    for _ in range(10000):
+        t1, y1, fired = _phase(sys, tau, 2 * math.pi, y, stuck, signs)
+        for c in range(sys.k):
+            if c in stuck:
+                stats[c]["stuck"] += t1 - tau
+        if not fired or t1 >= 2 * math.pi - 1e-12:
+            y = y1
+            tau = 2 * math.pi
+            break
+        # contacts at zero velocity: the stuck ones and those whose event fired
+        vel = sys.B.T @ y1[n:]
+        cand = sorted(set(stuck) | set(fired))
+        free = {c: signs[c] for c in range(sys.k) if c not in cand}
+        for c in range(sys.k):
+            if c in free and abs(vel[c]) < 1e-9 * (1 + np.abs(y1[n:]).max()):
+                cand.append(c)
+                free.pop(c)
+        cand = [c for c in cand if sys.betas[c] > 0.0]
+        new_stuck, new_signs = sys.decide(t1, y1[:n], cand, free)
+        for c in range(sys.k):
+            if c in stuck and c not in new_stuck:
+                start = stick_start[c]
+                if start is None or t1 - start > STICK_MIN:
+                    stats[c]["sticks"] += 1
+                stick_start[c] = None
+            if c in new_stuck and c not in stuck:
+                stick_start[c] = t1
+        stuck, signs = tuple(new_stuck), {c: new_signs.get(c, 0.0) for c in range(sys.k)}
+        y, tau = y1, t1
+    for c in range(sys.k):
+        if c in stuck and stick_start[c] is not None and stick_start[c] > 0.0:
+            if 2 * math.pi - stick_start[c] > STICK_MIN:
+                stats[c]["sticks"] += 1
+    return y, stuck, signs
+
+
+def reference_regimes(
+    scene: MultiScene, r: float, beta: float, max_cycles: int = 300
+) -> tuple[np.ndarray, bool]:
+    """Per-contact regimes of one point (held start) and whether it converged."""
+    sys = _System(scene, r, beta)
+    k = sys.k
+    if not np.any(sys.betas > 0.0):
+        return np.full(k, regimes.CONTINUOUS), True
+    x0 = sys.held()
+    y = np.concatenate([x0, np.zeros(sys.n)])
+    active = [c for c in range(k) if sys.betas[c] > 0.0]
+    stuck, signs = sys.decide(0.0, x0, active, {c: 0.0 for c in range(k) if c not in active})
+    signs = {c: signs.get(c, 0.0) for c in range(k)}
+    history = []
+    for _ in range(max_cycles):
+        stats = [{"stuck": 0.0, "sticks": 0} for _ in range(k)]
+        key = (tuple(stuck), tuple(signs[c] for c in range(k)))
+        y_new, stuck, signs = _cycle(sys, y.copy(), tuple(stuck), dict(signs), stats)
+        history.append((y.copy(), key, stats))
+        y = y_new
+        scale = max(np.abs(y).max(), 1e-300)
+        now = (tuple(stuck), tuple(signs[c] for c in range(k)))
+        for period in (1, 2):
+            if len(history) >= period + 2:
+                y_old, key_old, _ = history[-period]
+                if key_old == now and np.abs(y - y_old).max() <= SECTION_RTOL * scale:
+                    return _regimes(history[-period:], sys), True
+    return np.full(k, regimes.NOT_CONVERGED), False
+
+
+def _regimes(history, sys: _System) -> np.ndarray:
+    out = np.empty(sys.k, dtype=int)
+    span = 2 * math.pi * len(history)
+    for c in range(sys.k):
+        if sys.betas[c] == 0.0:
+            out[c] = regimes.CONTINUOUS
+            continue
+        stuck = sum(h[2][c]["stuck"] for h in history)
+        sticks = sum(h[2][c]["sticks"] for h in history)
+        if stuck >= span - 1e-6:
+            out[c] = regimes.NO_MOTION
+        elif sticks > 0 or stuck > STICK_MIN:
+            out[c] = regimes.STICK_SLIP
+        else:
+            out[c] = regimes.CONTINUOUS
+    return out

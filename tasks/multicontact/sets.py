@@ -1,0 +1,150 @@
+"""Linear algebra of the stuck sets: one linear system per set of stuck contacts.
+
+With k contacts the motion is linear for each set ``S`` of stuck contacts (2^k
+sets, a bit mask: bit c set when contact c is stuck; docs/contacts.md 2). While
+``S`` is stuck, ``B_S^T x = d_S`` is frozen and
+
+    x = T_S q + W_S d_S,    B_S^T T_S = 0,  B_S^T W_S = I,
+
+``T_S`` an orthonormal basis of the null space of ``B_S^T`` and
+``W_S = B_S (B_S^T B_S)^-1``. The moving coordinates obey
+
+    r^2 T^T G T q'' + T^T K T q = T^T (p cos tau - K W d + f_slide),
+
+``f_slide = -sum_(c sliding) beta_c s_c b_c``; its modes ``K_S phi = lam G_S phi``
+(``phi^T G_S phi = I``) give ``x = X_S eta + W_S d`` with ``X_S = T_S phi`` and
+``eta = X_S^T G (x - W_S d)`` (the momentum-conserving projection; ``X_S^T G X_S = I``).
+The forces the stuck contacts must carry are
+
+    g_S = H_S (p cos tau - K x + f_slide),   H_S = (B_S^T G^-1 B_S)^-1 B_S^T G^-1,
+
+(the friction forces are ``-g_S``) and the set stays stuck while ``|g_c| <= beta_c``.
+Everything here is independent of r and beta (``M = r^2 G``: ``Omega = sqrt(lam) / r``).
+Arrays are padded to n modes and k contacts so that the compiled simulator
+indexes them by the set's bit mask.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.linalg import eigh, null_space
+
+from tasks.multicontact.scene import MultiScene
+
+
+@dataclass(frozen=True)
+class StuckSets:
+    """Per-set arrays (leading axis: the set's bit mask), see the module notes.
+
+    ``size[S]`` moving coordinates ``m = n - |S|``; ``lam[S, :m]``; ``X[S, :, :m]``
+    (``X_S``); ``XtG[S, :m, :]`` (``X_S^T G``); ``W[S, :, c]`` the column of
+    ``W_S`` for stuck contact c (0 otherwise); ``H[S, c, :]`` the row of ``H_S``
+    for stuck contact c (0 otherwise); ``HKX[S, c, :m] = (H_S K X_S)_c``;
+    ``BX[S, c, :m] = b_c^T X_S`` (contact velocity per modal velocity).
+    """
+
+    n: int
+    k: int
+    G: np.ndarray
+    Ginv: np.ndarray
+    K: np.ndarray
+    p0: np.ndarray
+    load_scales_r2: bool
+    B: np.ndarray
+    ratio: np.ndarray
+    compliance: np.ndarray
+    size: np.ndarray
+    lam: np.ndarray
+    X: np.ndarray
+    XtG: np.ndarray
+    W: np.ndarray
+    H: np.ndarray
+    HKX: np.ndarray
+    BX: np.ndarray
+
+    def kernel_args(self) -> tuple:
+        """The arrays in the order :func:`tasks.multicontact.steady.run_points` takes them."""
+        c = np.ascontiguousarray
+        return (
+            c(self.G),
+            c(self.Ginv),
+            c(self.K),
+            c(self.p0),
+            bool(self.load_scales_r2),
+            c(self.B),
+            c(self.ratio),
+            c(self.compliance),
+            c(self.size),
+            c(self.lam),
+            c(self.X),
+            c(self.XtG),
+            c(self.W),
+            c(self.H),
+            c(self.HKX),
+            c(self.BX),
+        )
+
+
+def stuck_sets(scene: MultiScene) -> StuckSets:
+    """The arrays of every stuck set of ``scene`` (see :class:`StuckSets`)."""
+    G = scene.mass_matrix(1.0)
+    K = scene.stiffness_matrix()
+    B = scene.contact_vectors()
+    n, k = B.shape
+    Ginv = np.linalg.inv(G)
+    Ginv = 0.5 * (Ginv + Ginv.T)
+    n_sets = 1 << k
+    size = np.zeros(n_sets, dtype=np.int64)
+    lam = np.zeros((n_sets, n))
+    X = np.zeros((n_sets, n, n))
+    XtG = np.zeros((n_sets, n, n))
+    W = np.zeros((n_sets, n, k))
+    H = np.zeros((n_sets, k, n))
+    HKX = np.zeros((n_sets, k, n))
+    BX = np.zeros((n_sets, k, n))
+    for S in range(n_sets):
+        stuck = [c for c in range(k) if S >> c & 1]
+        Bs = B[:, stuck]
+        m = n - len(stuck)
+        size[S] = m
+        T = null_space(Bs.T) if stuck else np.eye(n)
+        if m:
+            Gs = T.T @ G @ T
+            Ks = T.T @ K @ T
+            lam_s, phi = eigh(0.5 * (Ks + Ks.T), 0.5 * (Gs + Gs.T))
+            Xs = T @ phi
+            lam[S, :m] = lam_s
+            X[S, :, :m] = Xs
+            XtG[S, :m, :] = Xs.T @ G
+            BX[S, :, :m] = B.T @ Xs
+        if stuck:
+            Ws = Bs @ np.linalg.inv(Bs.T @ Bs)
+            Hs = np.linalg.solve(Bs.T @ Ginv @ Bs, Bs.T @ Ginv)
+            for i, c in enumerate(stuck):
+                W[S, :, c] = Ws[:, i]
+                H[S, c, :] = Hs[i]
+                if m:
+                    HKX[S, c, :m] = Hs[i] @ K @ X[S, :, :m]
+    compliance = np.einsum("ik,ik->k", B, np.linalg.solve(K, B))
+    return StuckSets(
+        n=n,
+        k=k,
+        G=G,
+        Ginv=Ginv,
+        K=K,
+        p0=scene.load_vector(1.0),
+        load_scales_r2=scene.load_scales_r2,
+        B=B,
+        ratio=np.array(scene.beta_ratio),
+        compliance=compliance,
+        size=size,
+        lam=lam,
+        X=X,
+        XtG=XtG,
+        W=W,
+        H=H,
+        HKX=HKX,
+        BX=BX,
+    )

@@ -1,0 +1,525 @@
+"""Steady state of one point with several contacts, and many points (docs/contacts.md 4).
+
+From the start (held: every contact held at zero relative displacement, the
+rest on the forced response of the held structure; or rest), excitation cycles
+are run (:func:`tasks.multicontact.cycle.run_cycle`) until the Poincare section
+``tau = 2 pi n`` repeats with the same stuck set and slip signs (period 1 or 2),
+with Newton's method on the Poincare map for slow transients, or until every
+contact provably stays stuck (no motion). The converged period is run once
+more with the orbit check (every stuck contact's force within its limit and
+every sliding contact's velocity of its slip sign at sampled points of every
+phase) and the design quantities (force amplitude by the same samples).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from tasks.kernel.layout import TWO_PI
+from tasks.multicontact.cycle import run_cycle
+from tasks.multicontact.decide import decide
+from tasks.multicontact.layout import (
+    CS_DMAX,
+    CS_DMIN,
+    CS_FORCE_MAX,
+    CS_ORBIT_ERROR,
+    CS_SLIP,
+    CS_STICK_START,
+    CS_STOPS,
+    CS_STUCK_TIME,
+    CS_VEL_ERROR,
+    CX_ACTIVE,
+    CX_B,
+    CX_BETAS,
+    CX_COMPLIANCE,
+    CX_H,
+    CX_HP,
+    CX_K,
+    CX_LOAD_COS,
+    CX_OMEGA,
+    CX_P,
+    CX_SIZE,
+    CX_STICK_MIN,
+    CX_X,
+    GS_FOREVER,
+    GS_STATUS,
+    GS_WORK,
+    N_CST,
+    N_GST,
+    N_OC,
+    N_OG,
+    OC_AMP,
+    OC_DISSIPATION,
+    OC_FORCE,
+    OC_REGIME,
+    OC_STICK,
+    OC_STOPS,
+    OG_ASYMPTOTIC,
+    OG_CONVERGED,
+    OG_CYCLES,
+    OG_IC,
+    OG_PERIOD,
+    OG_STATUS,
+)
+from tasks.regimes import (
+    CONTINUOUS,
+    IC_HELD,
+    IC_REST,
+    NO_MOTION,
+    NOT_CONVERGED,
+    NUMERICAL_FAILURE,
+    SLIP_RTOL,
+    STICK_SLIP,
+    UNBOUNDED,
+)
+
+#: Relative margin above which every start reaches no motion (docs/contacts.md 4).
+HELD_MARGIN_RTOL = 1e-9
+#: Newton iterations per shooting attempt, and cycles between attempts.
+NEWTON_ITERATIONS = 8
+SHOOT_EVERY = 20
+#: Velocity against the slip sign tolerated by the orbit check, relative to the
+#: contact's slip range (rounding of the samples next to a stop).
+ORBIT_VEL_RTOL = 1e-7
+
+
+@njit(cache=True)
+def point_context(r, beta, args, settings):
+    """The per-point context tuple (entries ``CX_*`` of :mod:`tasks.multicontact.layout`)."""
+    (G, Ginv, K, p0, scales, B, ratio, compliance, size, lam, X, XtG, W, H, HKX, BX) = args
+    event_tol = settings[0]
+    step_fraction = settings[1]
+    max_events = settings[7]
+    r2 = r * r
+    p = p0 * r2 if scales else p0.copy()
+    n = p.shape[0]
+    k = B.shape[1]
+    n_sets = size.shape[0]
+    betas = ratio * beta
+    active = 0
+    for c in range(k):
+        if betas[c] > 0.0:
+            active |= 1 << c
+    omega = np.zeros((n_sets, n))
+    load_cos = np.zeros((n_sets, n))
+    hp = np.zeros((n_sets, k))
+    om_max = 1.0
+    for S in range(n_sets):
+        for a in range(size[S]):
+            omega[S, a] = math.sqrt(max(lam[S, a], 0.0)) / r
+            om_max = max(om_max, omega[S, a])
+            acc = 0.0
+            for i in range(n):
+                acc += X[S, i, a] * p[i]
+            load_cos[S, a] = acc / r2
+        for c in range(k):
+            acc = 0.0
+            for i in range(n):
+                acc += H[S, c, i] * p[i]
+            hp[S, c] = acc
+    events = max(float(max_events), min(8.0 * om_max, 1e9))
+    return (
+        G,
+        Ginv,
+        K,
+        p,
+        B,
+        betas,
+        active,
+        size,
+        X,
+        XtG,
+        W,
+        H,
+        HKX,
+        BX,
+        omega,
+        load_cos,
+        hp,
+        r2,
+        step_fraction,
+        event_tol,
+        1e3 * event_tol,
+        events,
+        compliance,
+    )
+
+
+@njit(cache=True)
+def held_response(ctx, stuck):
+    """The forced response of the structure with the contacts ``stuck`` held at zero
+    relative displacement, at tau = 0 (``x_h(tau) = x_h(0) cos tau``).
+    Returns ``(X, exists)``: it does not exist at a resonance of a loaded mode."""
+    n = ctx[CX_P].shape[0]
+    m = ctx[CX_SIZE][stuck]
+    Xs = ctx[CX_X][stuck]
+    out = np.zeros(2 * n)
+    for a in range(m):
+        load = ctx[CX_LOAD_COS][stuck, a]
+        if load == 0.0:
+            continue
+        om2 = ctx[CX_OMEGA][stuck, a] ** 2
+        den = om2 - 1.0
+        if abs(den) < 1e-9 * max(om2, 1.0):
+            return out, False
+        for i in range(n):
+            out[i] += Xs[i, a] * load / den
+    return out, True
+
+
+@njit(cache=True)
+def held_margins(ctx, margins):
+    """``beta_c - max |g_c|`` of the held steady state (every active contact held);
+    all ``-inf`` where it does not exist. Returns whether every margin exceeds
+    ``HELD_MARGIN_RTOL beta_c`` (then every start reaches no motion: the
+    energy argument of docs/theory.md 3 with the sum over contacts)."""
+    active = ctx[CX_ACTIVE]
+    X, exists = held_response(ctx, active)
+    n = X.shape[0] // 2
+    k = margins.shape[0]
+    K = ctx[CX_K]
+    H = ctx[CX_H][active]
+    ok = exists and active != 0
+    for c in range(k):
+        if not exists:
+            margins[c] = -np.inf
+            continue
+        g = ctx[CX_HP][active, c]
+        for i in range(n):
+            kx = 0.0
+            for j in range(n):
+                kx += K[i, j] * X[j]
+            g -= H[c, i] * kx
+        margins[c] = ctx[CX_BETAS][c] - abs(g)
+        if (active >> c) & 1 and margins[c] <= HELD_MARGIN_RTOL * ctx[CX_BETAS][c]:
+            ok = False
+    return ok
+
+
+@njit(cache=True)
+def _period(X, stuck, signs, cst, gst, ctx, n_cycles, max_work, check):
+    """Run ``n_cycles`` cycles from the section; returns the new state, set and
+    the per-contact statistics summed (ranges merged) over them."""
+    n = X.shape[0] // 2
+    k = signs.shape[0]
+    x = X[:n].copy()
+    xd = X[n:].copy()
+    total = np.zeros((k, N_CST))
+    rec_n = np.zeros(1, dtype=np.int64)
+    buf = np.zeros((0, 2 + k + 2 * n))
+    for cyc in range(n_cycles):
+        stuck = run_cycle(
+            x, xd, stuck, signs, cst, gst, ctx, 0.0, TWO_PI, max_work, check, buf, rec_n
+        )
+        for c in range(k):
+            cst[c, CS_STICK_START] -= TWO_PI
+            for j in range(N_CST):
+                if cyc == 0:
+                    total[c, j] = cst[c, j]
+                elif j == CS_DMIN:
+                    total[c, j] = min(total[c, j], cst[c, j])
+                elif j == CS_DMAX or j == CS_FORCE_MAX or j == CS_ORBIT_ERROR or j == CS_VEL_ERROR:
+                    total[c, j] = max(total[c, j], cst[c, j])
+                elif j != CS_STICK_START:
+                    total[c, j] += cst[c, j]
+        if gst[GS_STATUS] != 0.0:
+            break
+    out = np.empty(2 * n)
+    out[:n] = x
+    out[n:] = xd
+    return out, stuck, total
+
+
+@njit(cache=True)
+def _undetermined(out_g, out_c, code, cycles, ic):
+    out_g[OG_CONVERGED] = 0.0
+    out_g[OG_CYCLES] = cycles
+    out_g[OG_PERIOD] = 0.0
+    out_g[OG_IC] = ic
+    out_g[OG_STATUS] = code
+    for c in range(out_c.shape[0]):
+        out_c[c, :] = np.nan
+        out_c[c, OC_REGIME] = code
+
+
+@njit(cache=True)
+def _max_abs(v):
+    acc = 0.0
+    for i in range(v.shape[0]):
+        acc = max(acc, abs(v[i]))
+    return acc
+
+
+@njit(cache=True)
+def _signs_hold(X, stuck, signs, ctx):
+    """Every sliding contact at the section moves in its slip direction (or has
+    zero velocity to rounding): a section state the map ``P`` is defined at."""
+    B = ctx[CX_B]
+    n = X.shape[0] // 2
+    vmax = 1e-300
+    for i in range(n):
+        vmax = max(vmax, abs(X[n + i]))
+    for c in range(signs.shape[0]):
+        if (ctx[CX_ACTIVE] >> c) & 1 and not (stuck >> c) & 1:
+            v = 0.0
+            for i in range(n):
+                v += B[i, c] * X[n + i]
+            if signs[c] * v < -1e-9 * vmax:
+                return False
+    return True
+
+
+@njit(cache=True)
+def _newton(X, stuck, signs, cst, gst, ctx, max_work, tol):
+    """Newton's method on the Poincare map ``P(X) - X = 0`` (finite-difference
+    Jacobian, the section's stuck set and signs kept). A fixed point is accepted
+    only where the section's slip signs hold and it attracts (spectral radius of
+    ``dP/dX`` at most 1 + 1e-6, as for one contact). Returns ``(X, cycles, ok)``."""
+    n2 = X.shape[0]
+    cycles = 0
+    J = np.zeros((n2, n2))
+    have_j = False
+    for _ in range(NEWTON_ITERATIONS):
+        if not _signs_hold(X, stuck, signs, ctx):
+            return X, cycles, False
+        s0 = signs.copy()
+        P0, _, _ = _period(X, stuck, s0, cst, gst, ctx, 1, max_work, False)
+        cycles += 1
+        if gst[GS_STATUS] != 0.0:
+            return X, cycles, False
+        F0 = P0 - X
+        scale = max(_max_abs(X), 1e-300)
+        if _max_abs(F0) <= tol * scale:
+            if not have_j:
+                return X, cycles, True
+            A = J.astype(np.complex128)
+            for i in range(n2):
+                A[i, i] += 1.0
+            rho = np.max(np.abs(np.linalg.eigvals(A)))
+            return X, cycles, rho <= 1.0 + 1e-6
+        h = 1e-7 * scale
+        for i in range(n2):
+            Xp = X.copy()
+            Xp[i] += h
+            s1 = signs.copy()
+            Pi, _, _ = _period(Xp, stuck, s1, cst, gst, ctx, 1, max_work, False)
+            cycles += 1
+            if gst[GS_STATUS] != 0.0:
+                return X, cycles, False
+            for j in range(n2):
+                J[j, i] = (Pi[j] - P0[j]) / h
+            J[i, i] -= 1.0
+        have_j = True
+        # least squares: a stuck coordinate's displacement is carried over
+        # unchanged (a zero column of J - I), the step leaves it alone
+        dX = np.linalg.lstsq(J, -F0)[0]
+        if not np.all(np.isfinite(dX)):
+            return X, cycles, False
+        X = X + dX
+    return X, cycles, False
+
+
+@njit(cache=True)
+def _finish(X, stuck, signs, ctx, period, cycles, ic, out_g, out_c, max_work):
+    """Run the converged period once more with the orbit check; write the fields."""
+    k = signs.shape[0]
+    cst = np.zeros((k, N_CST))
+    gst = np.zeros(N_GST)
+    for c in range(k):
+        cst[c, CS_STICK_START] = -1e300 if (stuck >> c) & 1 else 0.0
+    s = signs.copy()
+    _, _, tot = _period(X, stuck, s, cst, gst, ctx, period, max_work, True)
+    if gst[GS_STATUS] != 0.0:
+        _undetermined(out_g, out_c, gst[GS_STATUS], cycles, ic)
+        return
+    out_g[OG_CONVERGED] = 1.0
+    out_g[OG_CYCLES] = cycles
+    out_g[OG_PERIOD] = period
+    out_g[OG_IC] = ic
+    out_g[OG_STATUS] = 0.0
+    betas = ctx[CX_BETAS]
+    active = ctx[CX_ACTIVE]
+    span = TWO_PI * period
+    asymptotic = False
+    for c in range(k):
+        slip_range = tot[c, CS_DMAX] - tot[c, CS_DMIN]
+        out_c[c, OC_AMP] = 0.5 * slip_range
+        out_c[c, OC_STICK] = tot[c, CS_STUCK_TIME] / span
+        out_c[c, OC_DISSIPATION] = betas[c] * tot[c, CS_SLIP] / period
+        out_c[c, OC_FORCE] = tot[c, CS_FORCE_MAX]
+        out_c[c, OC_STOPS] = tot[c, CS_STOPS]
+        if not (active >> c) & 1:
+            out_c[c, OC_REGIME] = CONTINUOUS  # no friction: free sliding (beta_c = 0)
+            out_c[c, OC_STICK] = 0.0
+            out_c[c, OC_FORCE] = 0.0
+            continue
+        bad = tot[c, CS_ORBIT_ERROR] > 1e-9 or tot[c, CS_VEL_ERROR] > ORBIT_VEL_RTOL * (
+            slip_range + 1e-12
+        )
+        if bad:
+            out_g[OG_CONVERGED] = 0.0
+            out_g[OG_STATUS] = NUMERICAL_FAILURE
+            out_c[c, OC_REGIME] = NUMERICAL_FAILURE
+            continue
+        if tot[c, CS_STUCK_TIME] >= span - ctx[CX_STICK_MIN]:
+            out_c[c, OC_REGIME] = NO_MOTION
+        elif tot[c, CS_SLIP] < SLIP_RTOL * betas[c] * ctx[CX_COMPLIANCE][c]:
+            out_c[c, OC_REGIME] = NO_MOTION  # slips below the creep threshold: held
+            asymptotic = True
+        elif tot[c, CS_STOPS] > 0.0:
+            out_c[c, OC_REGIME] = STICK_SLIP
+        else:
+            out_c[c, OC_REGIME] = CONTINUOUS
+    out_g[OG_ASYMPTOTIC] = 1.0 if asymptotic else 0.0
+
+
+@njit(cache=True)
+def start_state(ctx, ic):
+    """``(X, stuck, signs, ic_used)`` of the start: held (every active contact held,
+    the rest on the held forced response; rest where that is resonant) or rest."""
+    k = ctx[CX_BETAS].shape[0]
+    n = ctx[CX_P].shape[0]
+    X = np.zeros(2 * n)
+    used = ic
+    if ic == IC_HELD:
+        Xh, exists = held_response(ctx, ctx[CX_ACTIVE])
+        if exists:
+            X = Xh
+        else:
+            used = IC_REST
+    signs = np.zeros(k)
+    new_signs = np.zeros(k)
+    stuck, _ = decide(X[:n], 0.0, ctx[CX_ACTIVE], signs, ctx, new_signs)
+    return X, stuck, new_signs, used
+
+
+@njit(cache=True)
+def simulate_point(r, beta, args, settings, out_g, out_c):
+    """Steady state of one point: fills ``out_g`` (``OG_*``) and ``out_c`` (``OC_*``,
+    one row per contact). Returns the section state ``(X, stuck, signs)`` of the
+    steady state found (of the last cycle run where none was found)."""
+    section_rtol = settings[2]
+    max_cycles = settings[3]
+    min_cycles = settings[4]
+    shooting = settings[5]
+    shooting_after = settings[6]
+    growth_factor = settings[8]
+    ic = settings[9]
+    max_work = settings[10]
+    ctx = point_context(r, beta, args, settings)
+    k = ctx[CX_BETAS].shape[0]
+    out_g[OG_ASYMPTOTIC] = 0.0
+    X, stuck, signs, used = start_state(ctx, ic)
+    margins = np.zeros(k)
+    if ctx[CX_ACTIVE] == 0:  # no friction anywhere: linear, continuous unless resonant
+        Xf, exists = held_response(ctx, 0)
+        if not exists:
+            _undetermined(out_g, out_c, UNBOUNDED, 0, used)
+            return X, stuck, signs
+        _finish(Xf, 0, np.zeros(k), ctx, 1, 0, used, out_g, out_c, max_work)
+        return Xf, 0, np.zeros(k)
+    if used != IC_HELD and held_margins(ctx, margins):
+        Xh, _ = held_response(ctx, ctx[CX_ACTIVE])
+        _finish(Xh, ctx[CX_ACTIVE], np.zeros(k), ctx, 1, 0, used, out_g, out_c, max_work)
+        out_g[OG_ASYMPTOTIC] = 1.0
+        return Xh, ctx[CX_ACTIVE], np.zeros(k)
+    cst = np.zeros((k, N_CST))
+    gst = np.zeros(N_GST)
+    for c in range(k):
+        cst[c, CS_STICK_START] = -1e300 if (stuck >> c) & 1 else 0.0
+    ref = max(_max_abs(X), _max_abs(np.linalg.solve(ctx[CX_K], ctx[CX_P])), 1e-300)
+    X1 = X.copy()
+    X2 = X.copy()
+    st1 = stuck
+    st2 = stuck
+    sg1 = signs.copy()
+    sg2 = signs.copy()
+    cycles = 0
+    work = 0.0
+    next_shot = shooting_after
+    while cycles < max_cycles:
+        s_before = signs.copy()
+        st_before = stuck
+        Xn, stuck, _ = _period(X, stuck, signs, cst, gst, ctx, 1, max_work - work, False)
+        cycles += 1
+        work += gst[GS_WORK]
+        if gst[GS_STATUS] != 0.0:
+            _undetermined(out_g, out_c, gst[GS_STATUS], cycles, used)
+            return X, stuck, signs
+        if gst[GS_FOREVER] > 0.0:  # every contact stuck for ever: no motion
+            _finish(X, st_before, s_before, ctx, 1, cycles, used, out_g, out_c, max_work)
+            return X, st_before, s_before
+        X2 = X1
+        st2 = st1
+        sg2 = sg1
+        X1 = X
+        st1 = st_before
+        sg1 = s_before
+        X = Xn
+        scale = max(_max_abs(X), 1e-300)
+        if scale > growth_factor * ref:
+            _undetermined(out_g, out_c, UNBOUNDED, cycles, used)
+            return X, stuck, signs
+        if cycles >= min_cycles:
+            if stuck == st1 and np.all(signs == sg1):
+                if _max_abs(X - X1) <= section_rtol * scale:
+                    _finish(X, stuck, signs, ctx, 1, cycles, used, out_g, out_c, max_work)
+                    return X, stuck, signs
+            if stuck == st2 and np.all(signs == sg2):
+                if _max_abs(X - X2) <= section_rtol * scale:
+                    _finish(X, stuck, signs, ctx, 2, cycles, used, out_g, out_c, max_work)
+                    return X, stuck, signs
+        if shooting and cycles >= next_shot:
+            next_shot = cycles + SHOOT_EVERY
+            Xs, used_cycles, ok = _newton(
+                X.copy(), stuck, signs.copy(), cst.copy(), gst, ctx, max_work, section_rtol
+            )
+            cycles += used_cycles
+            gst[GS_STATUS] = 0.0
+            if ok:
+                X = Xs
+                X1 = Xs + 1e300  # the plain test must see the fixed point repeat
+                X2 = X1
+    _undetermined(out_g, out_c, NOT_CONVERGED, cycles, used)
+    return X, stuck, signs
+
+
+@njit(cache=True, parallel=False)
+def run_points(r, beta, args, settings):
+    """Every point: ``(out_g (n, N_OG), out_c (n, k, N_OC))``."""
+    npts = r.shape[0]
+    k = args[5].shape[1]
+    out_g = np.zeros((npts, N_OG))
+    out_c = np.zeros((npts, k, N_OC))
+    for i in prange(npts):
+        simulate_point(r[i], beta[i], args, settings, out_g[i], out_c[i])
+    return out_g, out_c
+
+
+@njit(cache=True)
+def record_orbit(r, beta, args, settings, max_rows):
+    """The steady state of one point and its last period, phase by phase:
+    ``(out_g, out_c, rec, rows)``, ``rec`` rows ``(tau, stuck, signs, x, x')`` at
+    every phase start of the period (and its end), for tests and figures."""
+    k = args[5].shape[1]
+    n = args[3].shape[0]
+    out_g = np.zeros(N_OG)
+    out_c = np.zeros((k, N_OC))
+    X, stuck, signs = simulate_point(r, beta, args, settings, out_g, out_c)
+    ctx = point_context(r, beta, args, settings)
+    rec = np.zeros((max_rows, 2 + k + 2 * n))
+    period = max(int(out_g[OG_PERIOD]), 1)
+    cst = np.zeros((k, N_CST))
+    gst = np.zeros(N_GST)
+    rec_n = np.zeros(1, dtype=np.int64)
+    x = X[:n].copy()
+    xd = X[n:].copy()
+    s = signs.copy()
+    for _ in range(period):
+        stuck = run_cycle(
+            x, xd, stuck, s, cst, gst, ctx, 0.0, TWO_PI, settings[10], False, rec, rec_n
+        )
+    return out_g, out_c, rec, rec_n[0]
