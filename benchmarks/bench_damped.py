@@ -4,6 +4,7 @@ Run from the repository root::
 
     .venv/bin/python benchmarks/bench_damped.py                     # ~1 min
     .venv/bin/python benchmarks/bench_damped.py --old /path/to/tree # + same-run old/new
+    .venv/bin/python benchmarks/bench_damped.py --accuracy 12       # vs scipy, ~3 min
 
 1. **Damped vs undamped** (same run, same points): each of a few scenes is
    classified undamped and with Rayleigh damping (``("rayleigh", a, b)``,
@@ -13,6 +14,9 @@ Run from the repository root::
    ``git archive <commit> | tar -x -C DIR``): the same undamped sample is timed in a
    subprocess on each source tree (both kernels warmed up first), the ratio new / old
    printed, and the regime, cycles and slip amplitude arrays compared bit for bit.
+3. **Accuracy** (``--accuracy N``): N random points of each of eight damped scenes
+   (single masses, Rayleigh chains with every contact, random full M and K, a
+   cantilever) against the damped scipy reference (200 cycles from rest).
 
 Markdown tables on stdout. Wall times on a shared machine include its load.
 """
@@ -141,13 +145,79 @@ def old_vs_new(old: Path, n: int, repeats: int) -> int:
     return 0 if same_all else 1
 
 
+def accuracy(n_per_scene: int, seed: int) -> None:
+    """Regimes and slip amplitudes of the simulator against the damped scipy reference
+    (tasks.baseline, 200 cycles from rest, atol 1e-9) on random points of damped scenes."""
+    from analysis import closed_form
+    from tasks import Scene, classify, regimes
+    from tasks.baseline import paper_method
+    from tasks.structures import beam
+
+    rng = np.random.default_rng(seed)
+
+    def spd(n):
+        q, _ = np.linalg.qr(rng.standard_normal((n, n)))
+        return q @ np.diag(np.exp(rng.uniform(0.0, np.log(10.0), n))) @ q.T
+
+    def chain(args, a, b):
+        return Scene.from_matrices(**{**Scene(*args).matrices(), "damping": ("rayleigh", a, b)})
+
+    one = [[1.0]]
+    scenes = {
+        "mass zeta 0.05": Scene.from_matrices(
+            one, one, [1.0], ("ground", 0), damping=("modal", 0.05)
+        ),
+        "mass base zeta 0.2": Scene.from_matrices(
+            one, one, ("base", [1.0]), ("ground", 0), damping=("modal", 0.2)
+        ),
+        "3dof chain m2": chain(("ground", 3, 2), 0.1, 0.02),
+        "2dof base m1": chain(("base", 2, 1), 0.1, 0.01),
+        "2dof mass": chain(("mass", 2, 1), 0.15, 0.0),
+        "full 3x3 wall": Scene.from_matrices(
+            spd(3), spd(3), rng.standard_normal(3), ("ground", 1), damping=("rayleigh", 0.1, 0.02)
+        ),
+        "full 4x4 between": Scene.from_matrices(
+            spd(4),
+            spd(4),
+            rng.standard_normal(4),
+            ("between", 0, 3),
+            damping=("rayleigh", 0.08, 0.03),
+        ),
+        "cantilever 3 modes": beam(12, contact_node=10, modes=3, damping=("rayleigh", 0.1, 0.004)),
+    }
+    print(f"\n### Accuracy against the damped scipy reference ({n_per_scene} points per scene)\n")
+    print("| scene | points | same regime | moving | slip amplitude within 1e-4 |")
+    print("|---|---:|---:|---:|---:|")
+    totals = np.zeros(4, dtype=int)
+    for name, scene in scenes.items():
+        row = np.zeros(4, dtype=int)
+        for _ in range(n_per_scene):
+            r = float(rng.uniform(0.3, 3.0))
+            bm = float(closed_form.motion_bound(scene, [r])[0])
+            beta = float(rng.uniform(0.0, 1.2 * min(bm, 5.0)))
+            res = classify(scene, r, beta)
+            code, info = paper_method(scene, r, beta, cycles=200, atol=1e-9)
+            row[0] += 1
+            row[1] += int(res.regime) == code
+            if code != regimes.NO_MOTION and int(res.regime) == code:
+                row[2] += 1
+                row[3] += abs(info["amplitude"] - res.slip_amplitude) <= 1e-4 * info["amplitude"]
+        totals += row
+        print(f"| {name} | {row[0]} | {row[1]} | {row[2]} | {row[3]} |")
+    print(f"| **all** | {totals[0]} | {totals[1]} | {totals[2]} | {totals[3]} |")
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--points", type=int, default=400)
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--old", type=Path, help="source tree of the code before damping")
+    ap.add_argument("--accuracy", type=int, default=0, help="random points per damped scene")
     args = ap.parse_args()
     sys.path.insert(0, str(REPO))
+    if args.accuracy:
+        accuracy(args.accuracy, SEED)
+        return 0
     damped_vs_undamped(args.points, args.repeats)
     if args.old:
         return old_vs_new(args.old.resolve(), args.points, args.repeats)

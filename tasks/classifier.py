@@ -9,7 +9,7 @@ import numpy as np
 from tasks import kernel, numba_cache, regimes
 from tasks.fidelity import Settings, resolve
 from tasks.model import SceneModes, scene_modes
-from tasks.result import FIELDS, ClassifyResult
+from tasks.result import DESIGN_FIELDS, FIELDS, ClassifyResult
 from tasks.scene import Scene
 
 _IC_CODES = {name: code for code, name in regimes.INITIAL_CONDITIONS.items()}
@@ -68,6 +68,7 @@ def settings_args(settings: Settings, start: int | None = None) -> tuple:
         ic,
         float(settings.max_work),
         int(settings.seed),
+        bool(settings.warm) and ic == regimes.IC_HELD,
     )
 
 
@@ -99,7 +100,10 @@ def classify(
         Overrides of single settings, e.g. ``max_cycles=5000``; several starts
         per point with ``starts=("held", "rest")`` and ``n_random=4`` (seeded
         random starts, ``seed=0``; :mod:`tasks.fidelity`). Each start costs one
-        more simulation of every point.
+        more simulation of every point. ``warm=False`` starts every point from
+        the held state (by default a point's search is seeded by the converged
+        orbit of a close point before it in the call: same labels, fewer
+        periods); ``design=False`` skips the design quantities (then None).
 
     Returns
     -------
@@ -110,7 +114,10 @@ def classify(
         ``stick_fraction``, ``period``, ``initial_condition`` (of the first
         start), ``asymptotic`` (no motion reached by a creep: slips shrinking
         below the threshold of ``tasks.regimes.SLIP_RTOL``), and over all starts
-        ``regime_rest``, ``regimes_reached`` (bit mask) and ``start_dependent``.
+        ``regime_rest``, ``regimes_reached`` (bit mask) and ``start_dependent``;
+        the design quantities ``amplitude``, ``amplitude_relative``,
+        ``contact_force_amplitude`` and ``dissipation`` of the first start's
+        orbit (NaN where it has none), or None with ``design=False``.
 
     Raises
     ------
@@ -136,9 +143,11 @@ def classify(
     first = settings_args(resolved, codes[0])
     numba_cache.announce_compile()  # one line on stderr before a first compile
     out, final = kernel.run_points(flat_r, flat_beta, scene_args, first)
-    design, _ = kernel.orbit_designs(
-        flat_r, flat_beta, scene_args, first, out, final, kernel.DESIGN_SAMPLES
-    )  # design quantities of the first start's orbit
+    design = None
+    if resolved.design:  # design quantities of the first start's orbit
+        design, _ = kernel.orbit_designs(
+            flat_r, flat_beta, scene_args, first, out, final, kernel.DESIGN_SAMPLES
+        )
     others = [
         kernel.run_points(flat_r, flat_beta, scene_args, settings_args(resolved, c))[0]
         for c in codes[1:]
@@ -218,9 +227,10 @@ def result_from_kernel(
 def design_fields(
     design: np.ndarray | None, n_points: int, shape: tuple[int, ...], base: bool
 ) -> dict[str, np.ndarray]:
-    """The design quantities of :data:`tasks.result.FIELDS` from the kernel's columns."""
+    """The design quantities of :data:`tasks.result.FIELDS` from the kernel's columns
+    (all None when ``design`` is None: not computed)."""
     if design is None:
-        design = np.full((n_points, 4), np.nan)  # dof unknown: one mass of NaN
+        return dict.fromkeys(DESIGN_FIELDS)
     n = (design.shape[1] - 2) // 2
     own, other = design[:, :n], design[:, n : 2 * n]
     absolute, relative = (other, own) if base else (own, other)

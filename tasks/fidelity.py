@@ -23,6 +23,15 @@ max_work           2e6     2e7       2e8      work units per point before WORK_L
 growth_factor      1e3     1e4       1e5      section growth (vs. start) flagged UNBOUNDED
 =================  ======  ========  =======  ============================================
 
+What is computed (the same in every preset): ``warm`` (True) seeds each point's
+steady-state search with the converged orbit of the point before it in the call
+when that one is close (``tasks.kernel.point.run_points``; the same labels, fewer
+periods: docs/theory.md 3, "One regime per point"; ``warm=False`` starts every
+point from the held state, the path before warm starts); ``design`` (True)
+computes the design quantities (amplitudes, contact force amplitude,
+dissipation) of every orbit; with ``design=False`` they are not computed and
+the result's design fields are None (:data:`tasks.result.DESIGN_FIELDS`).
+
 Starts (the same in every preset): ``initial_condition`` ("held") is the start of
 a single run; ``starts`` (e.g. ``("held", "rest")``) lists the starts to compare,
 the first giving ``regime``; ``n_random`` seeded random starts (``seed``) on the
@@ -119,6 +128,8 @@ class Settings:
     starts: tuple[str, ...] = ()
     n_random: int = 0
     seed: int = 0
+    warm: bool = True
+    design: bool = True
 
     def __post_init__(self) -> None:
         for f in fields(self):

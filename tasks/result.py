@@ -98,6 +98,10 @@ COORD_ATTRS: dict[str, dict[str, str]] = {
 #: Fields with one value per mass: a trailing dimension ``mass`` (1..N) in
 #: :class:`ClassifyResult`, the dimension ``mass`` in stored results.
 MASS_FIELDS: tuple[str, ...] = ("amplitude", "amplitude_relative")
+#: Design quantities of the converged orbit: None in a :class:`ClassifyResult`
+#: computed with ``design=False`` (not computed; absent from ``as_dict`` and
+#: ``to_dataset``).
+DESIGN_FIELDS: tuple[str, ...] = (*MASS_FIELDS, "contact_force_amplitude", "dissipation")
 
 #: CF flag attributes of the coded fields (``flag_values`` / ``flag_meanings``).
 FLAGS: dict[str, dict[str, object]] = {
@@ -152,7 +156,8 @@ def field_shape(name: str, shape: tuple[int, ...], dof: int) -> tuple[int, ...]:
 
 @dataclass
 class ClassifyResult:
-    """Arrays of one shape (the broadcast shape of ``r`` and ``beta``)."""
+    """Arrays of one shape (the broadcast shape of ``r`` and ``beta``); the
+    :data:`DESIGN_FIELDS` are None where they were not asked for (``design=False``)."""
 
     regime: np.ndarray
     converged: np.ndarray
@@ -162,10 +167,10 @@ class ClassifyResult:
     stick_fraction: np.ndarray
     period: np.ndarray
     initial_condition: np.ndarray
-    amplitude: np.ndarray
-    amplitude_relative: np.ndarray
-    contact_force_amplitude: np.ndarray
-    dissipation: np.ndarray
+    amplitude: np.ndarray | None
+    amplitude_relative: np.ndarray | None
+    contact_force_amplitude: np.ndarray | None
+    dissipation: np.ndarray | None
     asymptotic: np.ndarray
     regime_rest: np.ndarray
     regimes_reached: np.ndarray
@@ -190,12 +195,16 @@ class ClassifyResult:
         return self.amplitude.shape[-1]
 
     def as_dict(self) -> dict[str, np.ndarray]:
-        return {f.name: getattr(self, f.name) for f in fields(self)}
+        """The fields computed (design quantities only if asked for)."""
+        return {
+            f.name: getattr(self, f.name) for f in fields(self) if getattr(self, f.name) is not None
+        }
 
     def reshape(self, shape: tuple[int, ...]) -> ClassifyResult:
-        return ClassifyResult(
-            **{k: v.reshape(field_shape(k, shape, self.dof)) for k, v in self.as_dict().items()}
-        )
+        dof = self.dof if self.amplitude is not None else 0
+        values = dict.fromkeys(DESIGN_FIELDS)
+        values.update({k: v.reshape(field_shape(k, shape, dof)) for k, v in self.as_dict().items()})
+        return ClassifyResult(**values)
 
     def to_dataset(self, r: np.ndarray, beta: np.ndarray, scene=None):
         """The result as an ``xarray.Dataset`` labelled by ``beta`` and ``r``.
@@ -240,8 +249,13 @@ class ClassifyResult:
         coords = {
             "beta": ("beta", beta, COORD_ATTRS["beta"]),
             "r": ("r", r, COORD_ATTRS["r"]),
-            "mass": ("mass", np.arange(1, self.dof + 1, dtype=np.int32), COORD_ATTRS["mass"]),
         }
+        if self.amplitude is not None:
+            coords["mass"] = (
+                "mass",
+                np.arange(1, self.dof + 1, dtype=np.int32),
+                COORD_ATTRS["mass"],
+            )
         attrs = {}
         if scene is not None:
             attrs = {

@@ -234,3 +234,56 @@ def test_non_proportional_damping_is_refused_by_the_simulator_only():
     with pytest.raises(ValueError, match="^damping: the simulator needs proportional"):
         classify(scene, 1.0, 0.1)
     assert np.isfinite(closed_form.motion_bound(scene, [1.0])[0])  # closed forms take it
+
+
+@pytest.mark.parametrize(
+    ("w", "sigma"),
+    [(2.0, 0.1), (1.0, 0.01), (1.0, 3.0), (2.0, 2.0), (0.5, 0.0), (3.7, 0.4)],
+)
+def test_damped_modal_propagation_and_its_bounds(w, sigma):
+    """One mode of Eq. 4.1 (under-, over-, critically and un-damped, at resonance):
+    the closed form against scipy's ODE solver, and the derivative bounds (Eq. 4.4)
+    and the stick-force bound (Eq. 4.5) above the sampled values."""
+    from scipy.integrate import solve_ivp
+
+    from tasks import kernel
+    from tasks.kernel import damping, layout
+
+    seg = np.zeros((layout.N_ROWS, 1))
+    sc = np.zeros(layout.N_SCALARS)
+    tau0, e0, v0, a, c, alpha, delta, amp = 0.7, 0.3, -1.1, 0.8, 0.25, 1.5, -0.6, 0.4
+    seg[layout.OMEGA, 0], seg[layout.DAMP, 0] = w, sigma
+    seg[layout.ETA0, 0], seg[layout.ETAD0, 0] = e0, v0
+    seg[layout.LOAD_COS, 0], seg[layout.LOAD_CONST, 0] = a, c
+    seg[layout.ALPHA, 0], seg[layout.DELTA, 0] = alpha, delta
+    sc[layout.COS_TAU0], sc[layout.SIN_TAU0] = np.cos(tau0), np.sin(tau0)
+    sc[layout.OBS_COS], sc[layout.OBS0] = amp, amp * np.cos(tau0) + alpha * e0 + delta * v0
+    sc[layout.DAMPED] = 1.0
+    t_end = 12.0
+    ts = np.linspace(0.0, t_end, 1201)
+
+    def rhs(t, y):
+        return [y[1], a * np.cos(tau0 + t) + c - 2 * sigma * y[1] - w * w * y[0]]
+
+    ref = solve_ivp(rhs, (0, t_end), [e0, v0], t_eval=ts, rtol=1e-12, atol=1e-13).y
+    eta, etad = np.zeros(1), np.zeros(1)
+    ys, dys = np.empty(ts.size), np.empty(ts.size)
+    for i, t in enumerate(ts):
+        ys[i], dys[i] = kernel.evaluate(seg, sc, t, eta, etad)
+        assert eta[0] == pytest.approx(ref[0, i], abs=1e-9)
+        assert etad[0] == pytest.approx(ref[1, i], abs=1e-9)
+        y_ref = amp * np.cos(tau0 + t) + alpha * ref[0, i] + delta * ref[1, i]
+        assert ys[i] == pytest.approx(y_ref, abs=1e-8)
+    d1, d2 = kernel.derivative_bounds(seg, sc, t_end)
+    assert np.max(np.abs(dys)) <= d1
+    assert np.max(np.abs(np.gradient(dys, ts))) <= d2 * 1.001  # finite differences
+    if sigma > 0.0:
+        assert np.max(np.abs(ys)) <= damping.stick_force_bound_damped(seg, sc) * (1 + 1e-12)
+    if sigma == 0.0:  # the damped formulas at sigma = 0 are the undamped ones
+        sc[layout.DAMPED] = 0.0
+        for t in (1e-9, 0.3, 5.0):
+            y0, dy0 = kernel.evaluate(seg, sc, t, eta, etad)
+            sc[layout.DAMPED] = 1.0
+            y1, dy1 = kernel.evaluate(seg, sc, t, eta, etad)
+            sc[layout.DAMPED] = 0.0
+            assert y1 == pytest.approx(y0, abs=1e-13) and dy1 == pytest.approx(dy0, abs=1e-12)

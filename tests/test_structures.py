@@ -131,3 +131,16 @@ def test_cantilever_regimes_agree_with_scipy_and_closed_forms(r, beta):
         amplitude = np.sqrt(V[0] ** 2 - (beta * U[0]) ** 2)
         assert res.slip_amplitude == pytest.approx(amplitude, rel=1e-6)
         assert abs(info["amplitude"] - amplitude) <= 1e-2 * amplitude  # from rest: transients
+
+
+def test_traced_boundaries_of_a_damped_cantilever_match_the_damped_closed_forms():
+    """The simulator's traced boundaries (bisection on classify) of a Rayleigh-damped
+    cantilever equal the damped closed forms of docs/structures.md 3 (exact method)."""
+    from tasks import trace_boundaries
+
+    scene = beam(12, contact_node=10, modes=3, damping=("rayleigh", 0.05, 0.004))
+    r = np.array([0.6, 1.4, 2.5])
+    bc, bm = closed_form.boundaries(scene, r, "exact")
+    tb = trace_boundaries(scene, r, (0.0, 3.0), guess_continuous=bc, guess_motion=bm)
+    np.testing.assert_allclose(tb.beta_continuous, bc, rtol=2e-3)
+    np.testing.assert_allclose(tb.beta_motion, bm, rtol=2e-3)

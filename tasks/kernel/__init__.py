@@ -30,8 +30,9 @@ Modules, one job each (dependencies point down the list):
 * :mod:`~tasks.kernel.creep`: the creep rule;
 * :mod:`~tasks.kernel.outcome`: writing a point's fields;
 * :mod:`~tasks.kernel.orbit`: the orbit invariant;
-* :mod:`~tasks.kernel.point`: the steady-state search of a point (:func:`simulate_point`,
-  :func:`run_points`);
+* :mod:`~tasks.kernel.point`: the steady-state search of a point from the held start
+  (:func:`simulate_point`) or from a neighbour's orbit (:func:`warm_point`), and of
+  many (:func:`run_points`);
 * :mod:`~tasks.kernel.records`: recorded stretches of motion (:func:`trace_cycles`);
 * :mod:`~tasks.kernel.design`: amplitudes, contact force amplitude, dissipation.
 
@@ -93,7 +94,7 @@ with numba_cache.kernel_cache():
         TWO_PI,
     )
     from tasks.kernel.orbit import ORBIT_RTOL, orbit_holds
-    from tasks.kernel.point import run_points, simulate_point
+    from tasks.kernel.point import run_points, simulate_point, warm_point
     from tasks.kernel.propagation import derivative_bounds, evaluate, event_function
     from tasks.kernel.records import sample_states, trace_cycles
     from tasks.kernel.shooting import SETTLE_CYCLES, SETTLE_PHASES, newton_settle, settle_at_phases
@@ -157,4 +158,5 @@ __all__ = [
     "start_phase",
     "stick_force_bound",
     "trace_cycles",
+    "warm_point",
 ]

@@ -70,6 +70,21 @@ def particular(w, sigma, a):
 
 
 @njit(cache=True)
+def mode_split(seg, k, ct0, st0):
+    """Mode k of a phase split as in Eq. 4.2-4.3: ``(w, sigma, static, P, Q, e, v)``,
+    the static part ``c / Omega^2``, the harmonic part ``(P, Q)`` and the free initial
+    state ``(e, v)`` left at the phase start (``P, Q`` infinite at an undamped
+    resonance)."""
+    w = seg[OMEGA, k]
+    sigma = seg[DAMP, k]
+    static = seg[LOAD_CONST, k] / (w * w)
+    P, Q = particular(w, sigma, seg[LOAD_COS, k])
+    e = seg[ETA0, k] - static - (P * ct0 + Q * st0)
+    v = seg[ETAD0, k] - (Q * ct0 - P * st0)
+    return w, sigma, static, P, Q, e, v
+
+
+@njit(cache=True)
 def free_factors(w, sigma, t):
     """``(E C1 - 1, E S1)`` of Eq. (4.3) at ``t >= 0``, accurate for small t."""
     mu2 = w * w - sigma * sigma
@@ -87,6 +102,15 @@ def free_factors(w, sigma, t):
             return 0.5 * (lo + hi), math.exp(-sigma * t) * math.sinh(nu * t) / nu
         return 0.5 * (lo + hi), 0.5 * (lo - hi) / nu
     return math.expm1(-sigma * t), math.exp(-sigma * t) * t
+
+
+@njit(cache=True)
+def free_derivative_bounds(w, sigma, f0, f1):
+    """Bounds, for all t >= 0, of ``|f'|``, ``|f''|`` and ``|f'''|`` of the free solution
+    of Eq. 4.1 that starts at ``(f0, f1)``: ``hypot(f^(k+1)(0), Omega f^(k)(0))`` (Eq. 4.4)."""
+    f2 = -2.0 * sigma * f1 - w * w * f0
+    f3 = -2.0 * sigma * f2 - w * w * f1
+    return math.hypot(f1, w * f0), math.hypot(f2, w * f1), math.hypot(f3, w * f2)
 
 
 @njit(cache=True)
@@ -108,15 +132,11 @@ def evaluate_damped(seg, sc, t, eta, etad):
     y = sc[OBS0] + amp * dcos
     dy = -amp * stau
     for k in range(m):
-        w = seg[OMEGA, k]
-        sigma = seg[DAMP, k]
+        w, sigma, _, P, Q, e, v = mode_split(seg, k, ct0, st0)
         a = seg[LOAD_COS, k]
         c = seg[LOAD_CONST, k]
         e0 = seg[ETA0, k]
         v0 = seg[ETAD0, k]
-        P, Q = particular(w, sigma, a)
-        e = e0 - c / (w * w) - (P * ct0 + Q * st0)
-        v = v0 - (Q * ct0 - P * st0)
         ecm1, es = free_factors(w, sigma, t)
         d_eta = e * ecm1 + (v + sigma * e) * es + P * dcos + Q * dsin
         d_etad = v * ecm1 - (sigma * v + w * w * e) * es - P * dsin + Q * dcos
@@ -149,32 +169,19 @@ def derivative_bounds_damped(seg, sc, t_end):
     ct0 = sc[COS_TAU0]
     st0 = sc[SIN_TAU0]
     for k in range(seg.shape[1]):
-        w = seg[OMEGA, k]
-        sigma = seg[DAMP, k]
-        a = seg[LOAD_COS, k]
-        c = seg[LOAD_CONST, k]
-        e0 = seg[ETA0, k]
-        v0 = seg[ETAD0, k]
-        abs_a = abs(a)
-        static = c / (w * w)
+        w, sigma, static, P, Q, e, v = mode_split(seg, k, ct0, st0)
+        abs_a = abs(seg[LOAD_COS, k])
         # Duhamel: free about the static offset + zero-start forced response
-        f0 = e0 - static
-        f1 = v0
-        f2 = -2.0 * sigma * f1 - w * w * f0
-        f3 = -2.0 * sigma * f2 - w * w * f1
-        b1 = math.hypot(f1, w * f0) + abs_a * t_end
-        b2 = math.hypot(f2, w * f1) + abs_a * (1.0 + t_end)
-        b3 = math.hypot(f3, w * f2) + abs_a * (1.0 + 2.0 * sigma + w + t_end)
-        P, Q = particular(w, sigma, a)
+        f1, f2, f3 = free_derivative_bounds(w, sigma, seg[ETA0, k] - static, seg[ETAD0, k])
+        b1 = f1 + abs_a * t_end
+        b2 = f2 + abs_a * (1.0 + t_end)
+        b3 = f3 + abs_a * (1.0 + 2.0 * sigma + w + t_end)
         if math.isfinite(P) and math.isfinite(Q):
             ap = math.hypot(P, Q)
-            g0 = e0 - static - (P * ct0 + Q * st0)
-            g1 = v0 - (Q * ct0 - P * st0)
-            g2 = -2.0 * sigma * g1 - w * w * g0
-            g3 = -2.0 * sigma * g2 - w * w * g1
-            b1 = min(b1, math.hypot(g1, w * g0) + ap)
-            b2 = min(b2, math.hypot(g2, w * g1) + ap)
-            b3 = min(b3, math.hypot(g3, w * g2) + ap)
+            f1, f2, f3 = free_derivative_bounds(w, sigma, e, v)
+            b1 = min(b1, f1 + ap)
+            b2 = min(b2, f2 + ap)
+            b3 = min(b3, f3 + ap)
         alpha = abs(seg[ALPHA, k])
         delta = abs(seg[DELTA, k])
         d1 += alpha * b1 + delta * b2
@@ -199,14 +206,9 @@ def stick_force_bound_damped(seg, sc):
     const = sc[OBS0] - sc[OBS_COS] * ct0
     free_sum = 0.0
     for k in range(seg.shape[1]):
-        w = seg[OMEGA, k]
-        sigma = seg[DAMP, k]
-        P, Q = particular(w, sigma, seg[LOAD_COS, k])
+        w, _, static, P, Q, e, v = mode_split(seg, k, ct0, st0)
         if not (math.isfinite(P) and math.isfinite(Q)):
             return np.inf
-        static = seg[LOAD_CONST, k] / (w * w)
-        e = seg[ETA0, k] - static - (P * ct0 + Q * st0)
-        v = seg[ETAD0, k] - (Q * ct0 - P * st0)
         alpha = seg[ALPHA, k]
         delta = seg[DELTA, k]
         # g(tau0) holds alpha eta0 + delta eta0'; keep only the static part in const

@@ -30,6 +30,7 @@ from tasks.kernel.layout import (
     CTX_SEG_SLIP,
     CTX_SEG_STICK,
     CTX_T,
+    DAMP,
     DELTA,
     LOAD_COS,
     N_OUT,
@@ -68,11 +69,20 @@ from tasks.regimes import (
     IC_HELD,
     NOT_CONVERGED,
     SLIP_RTOL,
+    STICK_SLIP,
     UNBOUNDED,
 )
 
 # held_margin must exceed this fraction of beta to decide no motion (rounding of g_h).
 HELD_MARGIN_RTOL = 1e-9
+# Newton steps a warm start may take before the point falls back to the held start.
+WARM_NEWTON = 6
+# A point is seeded only by a neighbour within this relative distance in beta, and
+# close enough in r that the fastest free mode's phase over one period,
+# 2 pi sqrt(lambda_max) / r, differs by at most WARM_PHASE radians (else the orbit
+# moves too far between the two points for a few Newton steps to follow it).
+WARM_STEP = 0.05
+WARM_PHASE = 0.3
 
 
 @njit(cache=True)
@@ -98,15 +108,13 @@ def _resonant_growth(seg_slip, f_r2, beta):
     mode k with ``pi |a_k| A`` per cycle while the contact dissipates at most
     ``4 beta |phi_k . b| A / r^2``; the amplitude A grows without bound when
     ``beta < pi |a_k| / (4 |f_k|)`` (SDOF: beta < pi/4). Used only where the
-    rate of growth can be too slow to see in simulation. Damped: never (every
-    motion stays bounded, docs/structures.md 4.4).
+    rate of growth can be too slow to see in simulation. A damped mode never
+    grows without bound (docs/structures.md 4.4).
     """
-    if is_damped(seg_slip):
-        return False
     for k in range(seg_slip.shape[1]):
         w = seg_slip[OMEGA, k]
         a = seg_slip[LOAD_COS, k]
-        if abs(w * w - 1.0) <= 1e-12 and a != 0.0:
+        if abs(w * w - 1.0) <= 1e-12 and a != 0.0 and seg_slip[DAMP, k] == 0.0:
             if 4.0 * beta * abs(f_r2[k]) < math.pi * abs(a):
                 return True
     return False
@@ -129,6 +137,7 @@ def simulate_point(r, beta, scene, settings, out, final):
         _initial_condition,
         _max_work,
         _seed,
+        _warm,
     ) = settings
     ctx, work, X, mode, ic_used = _context(r, beta, scene, settings)
     out[OUT_ASYMPTOTIC] = 0.0
@@ -355,8 +364,80 @@ def simulate_point(r, beta, scene, settings, out, final):
 
 
 @njit(cache=True)
+def warm_point(r, beta, scene, settings, out, final, seed):
+    """Steady state of a point by shooting from a neighbour's converged orbit (a warm start).
+
+    ``seed`` is the neighbour's row of :func:`run_points`' ``final`` (section
+    state, phase, section phase theta). Newton's method on this point's
+    Poincare map at the same section (:func:`tasks.kernel.shooting._shoot`, at
+    most ``WARM_NEWTON`` steps) starts from the seed; the fixed point is accepted
+    by the same test as the shooting of :func:`simulate_point` (residual below
+    ``section_rtol`` of the motion, not unstable), its period's statistics give
+    the fields (:func:`_finish`) and the creep rule applies
+    (:func:`_creep_limit`). Tried only where the held start of
+    :func:`simulate_point` would iterate: held start, beta > 0, below the motion
+    bound (:func:`held_margin`: above it the held start is proved stuck for
+    ever in its first cycle), no resonant growth.
+
+    Returns ``(accepted, cycles)``; when not accepted, ``out`` and ``final``
+    are left to :func:`simulate_point`.
+    """
+    section_rtol = settings[2]
+    shooting = settings[5]
+    ctx, work, X_held, _, ic_used = _context(r, beta, scene, settings)
+    if beta == 0.0 or ic_used != IC_HELD or not shooting:
+        return False, 0
+    if held_margin(ctx) > HELD_MARGIN_RTOL * beta:
+        return False, 0
+    if _resonant_growth(ctx[CTX_SEG_SLIP], ctx[CTX_F_R2], beta):
+        return False, 0
+    n = X_held.shape[0] // 2
+    X0 = seed[: 2 * n].copy()
+    mode0 = int(seed[2 * n])
+    theta = seed[2 * n + 1]
+    static = _max_abs(np.linalg.solve(ctx[CTX_K], ctx[CTX_P]))
+    ref = max(_max_abs(X_held), static, _max_abs(X0), 1e-300)
+    stats = np.zeros(N_STATS)
+    ok, Xs, used = _shoot(X0, mode0, stats, ctx, work, section_rtol, ref, WARM_NEWTON, theta)
+    if not ok:
+        return False, used
+    out[OUT_ASYMPTOTIC] = 0.0
+    final[: 2 * n] = Xs
+    final[2 * n] = start_phase(Xs, ctx[CTX_BETA], ctx, theta) if mode0 != 0 else 0
+    final[2 * n + 1] = theta
+    _finish(out, stats, stats, 1, used, ic_used)
+    _creep_limit(out, creep_threshold(ctx, beta))
+    return True, used
+
+
+@njit(cache=True)
+def _seeds_next(out):
+    """Whether a point's orbit can seed its neighbour: a verified period-1 motion."""
+    return (
+        out[OUT_CONVERGED] == 1.0
+        and out[OUT_PERIOD] == 1.0
+        and out[OUT_ASYMPTOTIC] == 0.0
+        and (out[OUT_REGIME] == STICK_SLIP or out[OUT_REGIME] == CONTINUOUS)
+    )
+
+
+@njit(cache=True)
 def run_points(r, beta, scene, settings):
     """Classify every point ``(r[i], beta[i])``.
+
+    With ``settings[12]`` (``warm``) a point first tries a warm start
+    (:func:`warm_point`) from the orbit of the last point before it that
+    converged to a period-1 motion, if that point lies within ``WARM_STEP``
+    (relative) in beta and within ``WARM_PHASE`` in the phase of the fastest
+    free mode over one period (how far apart in r the two orbits are). A point
+    the warm start does not settle, or whose orbit then fails the orbit
+    invariant, is classified from the held start (:func:`simulate_point`)
+    exactly as without warm starts. Every
+    periodic steady state of a point has the same regime, stops and stick
+    fraction (docs/theory.md 3, "One regime per point"): the seed changes how
+    fast a point settles, not its label, whatever the order of the points. The
+    warm start's periods are counted in ``cycles``; ``initial_condition`` stays
+    the held start, the reference the steady state is the limit of.
 
     Returns ``(out, final)``: ``out`` is ``(n_points, N_OUT)`` (columns
     ``OUT_*``), ``final`` the last section state and phase of each point.
@@ -364,7 +445,31 @@ def run_points(r, beta, scene, settings):
     n = scene[0].shape[0]
     out = np.empty((r.shape[0], N_OUT))
     final = np.empty((r.shape[0], 2 * n + 2))
+    warm = settings[12]
+    phase_rate = math.sqrt(scene[5][-1])  # the fastest sliding mode: Omega = sqrt(lambda) / r
+    seeded = False
+    seed_r = 0.0
+    seed_beta = 0.0
+    seed = np.empty(2 * n + 2)
     for i in range(r.shape[0]):
-        simulate_point(r[i], beta[i], scene, settings, out[i], final[i])
-        _check_orbit(r[i], beta[i], scene, settings, out[i], final[i])
+        accepted = False
+        spent = 0
+        drift = TWO_PI * phase_rate * abs(1.0 / r[i] - 1.0 / seed_r) if seeded else np.inf
+        near = drift <= WARM_PHASE and abs(beta[i] - seed_beta) <= WARM_STEP * max(
+            beta[i], seed_beta
+        )
+        if warm and seeded and near:
+            accepted, spent = warm_point(r[i], beta[i], scene, settings, out[i], final[i], seed)
+            if accepted:
+                _check_orbit(r[i], beta[i], scene, settings, out[i], final[i])
+                accepted = out[i, OUT_CONVERGED] == 1.0
+        if not accepted:
+            simulate_point(r[i], beta[i], scene, settings, out[i], final[i])
+            _check_orbit(r[i], beta[i], scene, settings, out[i], final[i])
+            out[i, OUT_CYCLES] += spent
+        if warm and _seeds_next(out[i]):
+            seed[:] = final[i]
+            seed_r = r[i]
+            seed_beta = beta[i]
+            seeded = True
     return out, final

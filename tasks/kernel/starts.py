@@ -31,7 +31,7 @@ from tasks.kernel.layout import (
     LOAD_COS,
     OMEGA,
 )
-from tasks.kernel.phases import _contact_force, _dot
+from tasks.kernel.phases import _contact_force, _dot, _stick_state
 
 
 @njit(cache=True)
@@ -44,15 +44,11 @@ def _held_response(seg_stick, phi_s, T, n):
     X = np.zeros(2 * n)
     if is_damped(seg_stick):  # damped: cos and sin parts (tasks.kernel.damping)
         eta, etad = held_modal_state(seg_stick)
-        for i in range(m):
-            qi = 0.0
-            qd = 0.0
-            for k in range(m):
-                qi += phi_s[i, k] * eta[k]
-                qd += phi_s[i, k] * etad[k]
-            for j in range(n):
-                X[j] += T[j, i] * qi
-                X[n + j] += T[j, i] * qd
+        x = np.zeros(n)
+        xd = np.zeros(n)
+        _stick_state(phi_s, T, np.zeros(n), 0.0, eta, etad, np.zeros(2 * m), x, xd)
+        X[:n] = x
+        X[n:] = xd
         return X, True
     zeta = np.zeros(m)
     for k in range(m):

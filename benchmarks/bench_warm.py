@@ -1,0 +1,125 @@
+"""Warm starts and the optional design pass: per-point cost on whole panels, and the paper's method.
+
+Run from the repository root::
+
+    .venv/bin/python benchmarks/bench_warm.py            # 250 x 100 panels, ~4 min on 2 cores
+    .venv/bin/python benchmarks/bench_warm.py --quick    # 100 x 40 panels, ~1 min
+
+In one process, on a 250 x 100 (r, beta) panel of Fig. 4 (2DOF, ground contact
+on m_1, gamma = 1, kappa = 0.5) and of Fig. 10b (5DOF, ground contact on m_2):
+``tasks.classify`` (balanced) with every point from the held start
+(``warm=False``: the path before warm starts) and with warm starts (the default),
+each with and without the design pass (``design=False``), one call per panel,
+compiled beforehand. The paper's method (``tasks.baseline.paper_method``: RK45 +
+events, 100 cycles from rest, scipy) runs on a seeded sample of the same
+points; the ratio is its mean time per point over each configuration's.
+Labels: the warm and cold panels must agree point for point (regime and
+stops); the paper's labels are compared on the sample (it integrates a fixed
+100 cycles, so slow transients can differ). Prints Markdown tables.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+from study.bench import machine  # noqa: E402
+from tasks import Scene, classify  # noqa: E402
+from tasks.baseline import paper_method  # noqa: E402
+
+PANELS = {
+    "Fig. 4 (2DOF, m_1, gamma 1, kappa 0.5)": (Scene("ground", 2, 1, gamma=1.0, kappa=0.5), 1.5),
+    "Fig. 10b (5DOF, m_2)": (Scene("ground", 5, 2), 2.0),
+}
+CONFIGS = {
+    "cold + design (old path)": {"warm": False},
+    "cold, no design": {"warm": False, "design": False},
+    "warm + design (default)": {},
+    "warm, no design": {"design": False},
+}
+SEED = 19
+
+
+def table(header: list[str], rows: list[list[object]]) -> str:
+    lines = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
+    return "\n".join(lines + ["| " + " | ".join(str(c) for c in row) + " |" for row in rows])
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="100 x 40 panels, 20 paper points")
+    parser.add_argument("--paper-points", type=int, default=None, help="paper sample per panel")
+    args = parser.parse_args()
+    n_r, n_beta = (100, 40) if args.quick else (250, 100)
+    n_paper = args.paper_points or (20 if args.quick else 40)
+    print("machine: " + "; ".join(f"{k} {v}" for k, v in machine().items()))
+    classify(Scene("ground", 2), [0.5, 1.5], [0.1, 0.6], design=False)  # compile / load
+    classify(Scene("ground", 2), [0.5, 1.5], [0.1, 0.6])
+    timing_rows, label_rows = [], []
+    for title, (scene, beta_max) in PANELS.items():
+        r, beta = np.meshgrid(np.linspace(0.02, 2.5, n_r), np.linspace(0.0, beta_max, n_beta))
+        results, per_point = {}, {}
+        for name, kw in CONFIGS.items():
+            t0 = time.perf_counter()
+            results[name] = classify(scene, r, beta, **kw)
+            per_point[name] = (time.perf_counter() - t0) / r.size
+        cold, warm = results["cold + design (old path)"], results["warm, no design"]
+        pick = np.random.default_rng(SEED).choice(r.size, n_paper, replace=False)
+        t0 = time.perf_counter()
+        paper = np.array([paper_method(scene, r.flat[i], beta.flat[i])[0] for i in pick])
+        paper_s = (time.perf_counter() - t0) / n_paper
+        moving = cold.regime > 0
+        timing_rows.append(
+            [title, f"{n_r} x {n_beta}"]
+            + [f"{per_point[n] * 1e3:.3f}" for n in CONFIGS]
+            + [f"{paper_s:.3f} ({n_paper})"]
+            + [f"{paper_s / per_point[n]:.0f}x" for n in CONFIGS]
+        )
+        label_rows.append(
+            [
+                title,
+                f"{np.sum(warm.regime == cold.regime)} / {r.size}",
+                f"{np.sum(warm.stops_per_cycle == cold.stops_per_cycle)} / {r.size}",
+                f"{np.nanmax(np.abs(warm.stick_fraction - cold.stick_fraction)):.1e}",
+                f"{cold.cycles[moving].mean():.1f} -> {warm.cycles[moving].mean():.1f}",
+                f"{np.sum(paper == cold.regime.flat[pick])} / {n_paper}",
+                f"{np.sum(paper == warm.regime.flat[pick])} / {n_paper}",
+            ]
+        )
+    names = list(CONFIGS)
+    print(
+        "\nms per point (one classify call per panel, balanced); speed-up over the paper's method"
+    )
+    print(
+        table(
+            ["panel", "points", *[f"{n} ms" for n in names], "paper s/pt (n)"]
+            + [f"paper / {n}" for n in names],
+            timing_rows,
+        )
+    )
+    print("\nlabels: warm vs cold on the whole panel, and the paper's method on its sample")
+    print(
+        table(
+            [
+                "panel",
+                "regime warm = cold",
+                "stops warm = cold",
+                "max |stick fraction diff|",
+                "cycles per moving point cold -> warm",
+                "paper = cold",
+                "paper = warm",
+            ],
+            label_rows,
+        )
+    )
+
+
+if __name__ == "__main__":
+    main()
