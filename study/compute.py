@@ -57,7 +57,7 @@ def compute_chunk(task: dict) -> dict[str, np.ndarray]:
 def _classify(scene: dict, settings: dict, r: np.ndarray, beta: np.ndarray) -> dict:
     from tasks import classify
 
-    res = classify(Scene(**scene), r, beta, **settings)
+    res = classify(Scene.from_dict(scene), r, beta, **settings)
     return {name: np.asarray(getattr(res, name), dtype=dt) for name, (dt, _) in FIELDS.items()}
 
 
