@@ -64,6 +64,7 @@ from study.limits import (
     check_name,
     check_range,
     check_size,
+    entry_kind,
 )
 from tasks.fidelity import PRESETS, Settings, resolve
 from tasks.scene import Scene
@@ -463,18 +464,6 @@ def _read_scene(raw: object, path: str, directory: Path) -> SceneSpec:
 
 
 # --------------------------------------------------------------------------- the study
-def _kind(mode: int) -> str:
-    """What a file system entry that is not a regular file is (for the message)."""
-    kinds = {
-        stat.S_IFDIR: "a directory",
-        stat.S_IFIFO: "a FIFO (named pipe)",
-        stat.S_IFCHR: "a character device",
-        stat.S_IFBLK: "a block device",
-        stat.S_IFSOCK: "a socket",
-    }
-    return kinds.get(stat.S_IFMT(mode), "not a regular file")
-
-
 def read_study_text(path: Path) -> str:
     """The text of a study file: a regular file of at most ``MAX_STUDY_BYTES`` bytes, UTF-8.
 
@@ -487,7 +476,7 @@ def read_study_text(path: Path) -> str:
         st = os.stat(path)
         if not stat.S_ISREG(st.st_mode):
             raise StudyError(
-                "", f"a study file must be a regular file, this is {_kind(st.st_mode)}", where
+                "", f"a study file must be a regular file, this is {entry_kind(st.st_mode)}", where
             )
         fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_NOCTTY", 0))
     except FileNotFoundError:
@@ -498,7 +487,7 @@ def read_study_text(path: Path) -> str:
         st = os.fstat(fd)
         if not stat.S_ISREG(st.st_mode):
             raise StudyError(
-                "", f"a study file must be a regular file, this is {_kind(st.st_mode)}", where
+                "", f"a study file must be a regular file, this is {entry_kind(st.st_mode)}", where
             )
         with os.fdopen(os.dup(fd), "rb") as f:
             data = f.read(MAX_STUDY_BYTES + 1)

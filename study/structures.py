@@ -32,6 +32,7 @@ from scipy.linalg import eigh
 from study import fields
 from study.errors import StudyError, field_error
 from study.fields import show
+from study.limits import entry_kind
 from tasks.scene import Scene
 from tasks.structures import beam
 
@@ -86,11 +87,6 @@ def damping_spec(raw: object) -> object:
     return value  # a matrix: checked by from_matrices
 
 
-def _kind(mode: int) -> str:
-    kinds = {stat.S_IFDIR: "a directory", stat.S_IFIFO: "a FIFO (named pipe)"}
-    return kinds.get(stat.S_IFMT(mode), "not a regular file")
-
-
 def read_npz(path: Path) -> dict[str, np.ndarray]:
     """The arrays of a scene's ``.npz``: a regular file of at most :data:`MAX_NPZ_BYTES`.
 
@@ -103,7 +99,7 @@ def read_npz(path: Path) -> dict[str, np.ndarray]:
         st = os.stat(path)
         if not stat.S_ISREG(st.st_mode):
             raise StudyError(
-                where, f"{path} must be a regular .npz file, this is {_kind(st.st_mode)}"
+                where, f"{path} must be a regular .npz file, this is {entry_kind(st.st_mode)}"
             )
         fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_NOCTTY", 0))
     except FileNotFoundError:
