@@ -22,6 +22,7 @@ import xarray as xr
 from analysis import predict
 from analysis.design import scene_of, stored_matrices
 from study import Study
+from study.definition import SceneSpec
 from study.errors import StudyError
 from study.structures import MAX_NPZ_BYTES
 from tasks import Scene, classify
@@ -263,6 +264,8 @@ def test_npz_is_read_only_as_a_bounded_regular_file(tmp_path):
         {"scene": [{"name": "s", **BASE, "matrices": M2, "contact": {"ground": 0}}]}
     )
     assert study.scenes[0].structure == inline.scenes[0].structure
+    spec = SceneSpec("s", matrices=M2, contact=("ground", 0), r=BASE["r"], beta=BASE["beta"])
+    assert spec == inline.scenes[0]
     # the Python classes take the same, and the provenance text rebuilds the study
     assert Study.from_dict(__import__("tomllib").loads(study.to_toml())) == study
 
