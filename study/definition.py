@@ -317,7 +317,7 @@ class SceneSpec:
             contact = structures.contact_spec(self.contact)
             scene = structures.matrices_scene(self.matrices, contact, self.damping, Path.cwd())
             object.__setattr__(self, "contact", contact)
-        object.__setattr__(self, "structure", scene)
+        object.__setattr__(self, "structure", structures.check_simulable(scene))
         object.__setattr__(self, "dof", scene.dof)
         object.__setattr__(self, "contact_mass", scene.contact_mass)
 

@@ -33,6 +33,7 @@ from study import fields
 from study.errors import StudyError, field_error
 from study.fields import show
 from study.limits import entry_kind
+from tasks.model import scene_modes
 from tasks.scene import Scene
 from tasks.structures import beam
 
@@ -221,6 +222,16 @@ def beam_scene(raw: object, damping: object) -> Scene:
         if err.field.split(".")[0] != "damping":
             err = StudyError(f"beam.{err.field}" if err.field else "beam", err.message)
         raise err from None
+
+
+def check_simulable(scene: Scene) -> Scene:
+    """``scene`` if the simulator takes it (proportional damping, docs/structures.md 4.1),
+    else the one-line error of ``tasks.model`` naming ``damping``, before any run."""
+    try:
+        scene_modes(scene).kernel_args()
+    except ValueError as exc:
+        raise field_error("", exc) from None
+    return scene
 
 
 def describe(scene: Scene, beam_raw: Mapping | None) -> str:
