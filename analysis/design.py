@@ -106,6 +106,8 @@ def scene_of(ds: xr.Dataset) -> Scene | None:
     if "scene" not in ds.attrs:
         return None
     d = dict(json.loads(ds.attrs["scene"]))
+    if d.get("contact") == "matrices":
+        return stored_structure(ds)
     for name in ("gamma", "kappa"):
         if name in ds.coords and ds[name].ndim == 0:
             d[name] = float(ds[name])
@@ -113,6 +115,36 @@ def scene_of(ds: xr.Dataset) -> Scene | None:
         return Scene(**d)
     except (TypeError, ValueError):  # a sweep not selected: no single scene
         return None
+
+
+def stored_matrices(ds: xr.Dataset) -> dict[str, object]:
+    """The keyword arguments of :meth:`tasks.Scene.from_matrices` stored with a scene of
+    matrices (its variables ``mass_matrix``, ``stiffness_matrix``, ``load_vector``,
+    ``damping_matrix``; docs/results.md)."""
+    d = json.loads(ds.attrs["scene"])
+    load = ds["load_vector"].values
+    damping: object = None
+    if "damping_matrix" in ds:
+        kind, *values = ds["damping_matrix"].attrs["damping"].split()
+        numbers = [float(v) for v in values]
+        damping = {
+            "rayleigh": lambda: ("rayleigh", *numbers),
+            "modal": lambda: ("modal", np.array(numbers)),
+        }.get(kind, lambda: ds["damping_matrix"].values)()
+    return {
+        "mass": ds["mass_matrix"].values,
+        "stiffness": ds["stiffness_matrix"].values,
+        "load": ("base", load) if d.get("load") == "base" else load,
+        "contact": tuple([d["contact_dofs"][0], *map(int, d["contact_dofs"][1:])]),
+        "damping": damping,
+    }
+
+
+def stored_structure(ds: xr.Dataset) -> Scene | None:
+    """The scene of matrices stored with a result (:func:`stored_matrices`), if whole."""
+    if "mass_matrix" not in ds:
+        return None
+    return Scene.from_matrices(**stored_matrices(ds))
 
 
 def _contact_numerator(scene: Scene, r: float) -> float:

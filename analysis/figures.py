@@ -138,6 +138,16 @@ def _ratio_text(value: object) -> str:
     return f"{float(value):g}"
 
 
+def r_label(ds: xr.Dataset) -> str:
+    """The x label: the paper's r_1 (Eq. 7) for a chain; r of Eq. 1.1 of docs/structures.md
+    for a structure (``omega / omega_1`` of the beam without contact for a beam, Eq. 2.3)."""
+    if ds.attrs.get("contact") != "matrices":
+        return R_LABEL
+    if '"beam"' in str(ds.attrs.get("scene", "")):
+        return r"$r = \omega / \omega_1$"
+    return r"$r$"
+
+
 def scene_title(ds: xr.Dataset, swept: bool = True) -> str:
     """``2DOF, ground-fixed wall on $m_{1}$, $\\gamma$ = 1, $\\kappa$ = 0.5`` (matplotlib
     mathtext) from a scene's attributes
@@ -153,6 +163,8 @@ def scene_title(ds: xr.Dataset, swept: bool = True) -> str:
     j = j or scene.get("contact_mass", 1)
     if contact is None or dof is None:
         return str(attrs.get("scene_label") or attrs.get("scene_name", ""))
+    if "description" in scene:  # a structure (study.structures.describe)
+        return str(scene["description"])
     size = "SDOF" if int(dof) == 1 else f"{dof}DOF"
     if contact == "mass":
         where = f"contact between $m_{{{j}}}$ and $m_{{{int(j) + 1}}}$"
@@ -320,7 +332,7 @@ def _draw_plane(
         bounds["numerical"] = numerical
         lo, hi = _beta_range(plane, [v for pair in bounds.values() for v in pair])
         ax.set_xlim(float(np.min(r)), float(np.max(r)))
-        ax.set_xlabel(R_LABEL)
+        ax.set_xlabel(r_label(plane))
         ax.set_ylabel(BETA_LABEL)
         draw_boundaries(ax, r, bounds, (lo, hi), BOUNDARY_COLOURS)
         marks |= mark_frequencies(ax, plane)
@@ -330,6 +342,7 @@ def _draw_plane(
     )
     draw_boundaries(ax, r, bounds)
     marks |= mark_frequencies(ax, plane)
+    ax.set_xlabel(r_label(plane))
     return codes
 
 
@@ -455,7 +468,7 @@ def points_figure(
                 zorder=3,
             )
             ax.set_title(f"{method}: {int(wrong.sum())} misclassified")
-        ax.set_xlabel(R_LABEL)
+        ax.set_xlabel(r_label(ds))
     axes[0].set_ylabel(BETA_LABEL)
     handles = regime_handles(codes) + [
         Line2D(
@@ -479,6 +492,7 @@ def deviation_figure(
     title: str | None = None,
     step: float | None = None,
     traced: bool = False,
+    xlabel: str = R_LABEL,
 ) -> Figure:
     """Numerical minus closed-form boundary vs r, both boundaries, one line per method.
 
@@ -544,7 +558,7 @@ def deviation_figure(
             f"(columns compared: {', '.join(counts)})",
             fontsize="small",
         )
-    axes[-1].set_xlabel(R_LABEL)
+    axes[-1].set_xlabel(xlabel)
     legend = list(handles.values())
     if step:
         legend.append(Patch(facecolor="0.9", label="within half a grid step"))
@@ -563,7 +577,8 @@ def response_figure(
     n_beta: int = 7,
     title: str | None = None,
 ) -> Figure:
-    """Den Hartog's plot, generalised: the amplitude of one mass against r for several beta,
+    """Den Hartog's plot, generalised: the amplitude of one mass (a structure: of the DOF
+    ``mass - 1``, numbered from 0 as its contact) against r for several beta,
     the smallest amplitude over the grid's beta, and the beta that gives it.
 
     Parameters
@@ -589,6 +604,8 @@ def response_figure(
     from analysis.design import optimal_beta, response
 
     ds = ds.isel({d: 0 for d in sweep_dims(ds)})
+    structure = ds.attrs.get("contact") == "matrices"
+    who = f"DOF $x_{{{mass - 1}}}$" if structure else f"$m_{{{mass}}}$"
     amp = response(ds, mass, frame).transpose("beta", "r")
     best = optimal_beta(ds, mass, frame)
     r = ds["r"].values
@@ -625,12 +642,12 @@ def response_figure(
         for k, (a, b) in enumerate(zip(runs[::2], runs[1::2], strict=True)):
             bar = top.axvspan(edges[a], edges[b], ymin=0.0, ymax=0.035, color="0.35", lw=0)
             if k == 0:
-                bar.set_label(f"smallest amplitude of $m_{{{mass}}}$ is 0")
+                bar.set_label(f"smallest amplitude of {who} is 0")
                 handles.append(bar)
     top.set_yscale("log")
     top.set_ylim(0.7 * floor, 1.5 * hi)
     which = "absolute" if frame == "absolute" else "relative to the base"
-    top.set_ylabel(f"amplitude of $m_{{{mass}}}$ / Y ({which})", fontsize="small")
+    top.set_ylabel(f"amplitude of {who} / Y ({which})", fontsize="small")
     top.set_xlim(float(r.min()), float(r.max()))
     # where the smallest amplitude is 0 the "optimum" is only the smallest beta that
     # holds the mass, the motion bound (drawn below): not an optimum, so not drawn
@@ -640,7 +657,7 @@ def response_figure(
         bottom.text(
             0.02,
             0.96,
-            f"$m_{{{mass}}}$ is held (amplitude 0) at every r from the motion bound up:\n"
+            f"{who} is held (amplitude 0) at every r from the motion bound up:\n"
             "the smallest amplitude is 0 there, so no optimal $\\beta$ is drawn",
             transform=bottom.transAxes,
             ha="left",
@@ -659,7 +676,7 @@ def response_figure(
             )
     bottom.set_ylim(float(beta.min()), float(beta.max()))
     bottom.set_ylabel(r"$\beta$ of the smallest amplitude", fontsize="small")
-    bottom.set_xlabel(R_LABEL)
+    bottom.set_xlabel(r_label(ds))
     marks = mark_frequencies(top, ds) | mark_frequencies(bottom, ds)
     handles.append(Line2D([], [], color="k", marker=".", label=r"optimal $\beta$ (grid)"))
     handles += [

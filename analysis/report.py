@@ -82,6 +82,7 @@ def _needed(ds: xr.Dataset) -> xr.Dataset:
     wanted = ("regime", "amplitude", "amplitude_relative", "simulated", "verification")
     keep = [v for v in ds.data_vars if v in wanted or str(v).startswith("beta_")]
     keep += [v for v in ds.data_vars if v in starts.START_VARIABLES]
+    keep += [v for v in ds.data_vars if "dof" in ds[v].dims]  # a structure's matrices
     return ds[keep].assign_attrs(ds.attrs)
 
 
@@ -472,6 +473,7 @@ def _scene_figures(
                 title=title,
                 step=grid_step(ds),
                 traced=scene_kind(ds) == "trace",
+                xlabel=figures.r_label(ds),
             )
         )
     if scene_kind(ds) == "grid" and "mass" in ds.get("amplitude", xr.DataArray()).dims:

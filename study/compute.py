@@ -63,7 +63,7 @@ def _trace(task: dict) -> dict:
 def _classify(scene: dict, settings: dict, r: np.ndarray, beta: np.ndarray) -> dict:
     from tasks import classify
 
-    res = classify(Scene(**scene), r, beta, **settings)
+    res = classify(Scene.from_dict(scene), r, beta, **settings)
     return {name: np.asarray(getattr(res, name), dtype=dt) for name, (dt, _) in FIELDS.items()}
 
 

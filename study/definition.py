@@ -48,7 +48,7 @@ from typing import Any
 
 import numpy as np
 
-from study import fields
+from study import fields, structures
 from study.axes import SPACINGS, Axis, Points
 from study.errors import StudyError, field_error
 from study.fields import show as _show
@@ -64,6 +64,7 @@ from study.limits import (
     check_name,
     check_range,
     check_size,
+    entry_kind,
 )
 from tasks.fidelity import PRESETS, Settings, resolve
 from tasks.scene import Scene
@@ -230,8 +231,8 @@ class SceneSpec:
     """
 
     name: str
-    contact: str
-    dof: int
+    contact: str | Mapping | tuple | None = None
+    dof: int | None = None
     contact_mass: int = 1
     gamma: float | tuple[float, ...] | Axis = 1.0
     kappa: float | tuple[float, ...] | Axis = 1.0
@@ -245,17 +246,30 @@ class SceneSpec:
     coarse_step: int = 16
     verify_fraction: float = 0.005
     hint: str = "exact"
+    #: A structure instead of a chain (:mod:`study.structures`): its matrices (a table
+    #: or a ``.npz`` path) with ``contact = {ground = j}``, or a beam table; and damping.
+    matrices: object = field(default=None, compare=False, repr=False)
+    beam: Mapping | None = field(default=None, compare=False)
+    damping: object = field(default=None, compare=False, repr=False)
+    #: The scene of ``matrices`` or ``beam`` (None for a chain).
+    structure: Scene | None = field(default=None, init=False, repr=False)
 
     def __post_init__(self) -> None:
         def put(key: str, value: object) -> None:
             object.__setattr__(self, key, value)
 
-        put("contact", fields.string(self.contact, "contact"))
-        dof = fields.integer(self.dof, "dof", minimum=1)
-        put("dof", dof)
-        put("contact_mass", fields.integer(self.contact_mass, "contact_mass"))
-        put("gamma", _ratio(self.gamma, "gamma", dof))
-        put("kappa", _ratio(self.kappa, "kappa", dof))
+        if self.matrices is not None or self.beam is not None:
+            self._check_structure()
+            dof = self.dof
+        else:
+            if self.damping is not None:
+                raise StudyError("damping", "applies to scenes of matrices or beams only")
+            put("contact", fields.string(self.contact, "contact"))
+            dof = fields.integer(self.dof, "dof", minimum=1)
+            put("dof", dof)
+            put("contact_mass", fields.integer(self.contact_mass, "contact_mass"))
+            put("gamma", _ratio(self.gamma, "gamma", dof))
+            put("kappa", _ratio(self.kappa, "kappa", dof))
         mode = fields.string(self.mode, "mode", MODES)
         put("coarse_step", fields.integer(self.coarse_step, "coarse_step", minimum=1))
         fraction = fields.number(self.verify_fraction, "verify_fraction")
@@ -288,6 +302,25 @@ class SceneSpec:
         unnamed = self.name is None or (isinstance(self.name, str) and not self.name)
         put("name", base.label if unnamed else _name(self.name, "name"))
 
+    def _check_structure(self) -> None:
+        """A scene of matrices or a beam (:mod:`study.structures`); sets ``structure``."""
+        if self.matrices is not None and self.beam is not None:
+            raise StudyError("beam", "give either matrices or beam, not both")
+        for k in ("gamma", "kappa"):
+            if not (fields.is_number(getattr(self, k)) and getattr(self, k) == 1.0):
+                raise StudyError(k, "a structure has no chain ratios (its matrices say it all)")
+        if self.beam is not None:
+            if self.contact is not None:
+                raise StudyError("contact", "a beam's contact is beam.contact_node")
+            scene = structures.beam_scene(self.beam, self.damping)
+        else:
+            contact = structures.contact_spec(self.contact)
+            scene = structures.matrices_scene(self.matrices, contact, self.damping, Path.cwd())
+            object.__setattr__(self, "contact", contact)
+        object.__setattr__(self, "structure", structures.check_simulable(scene))
+        object.__setattr__(self, "dof", scene.dof)
+        object.__setattr__(self, "contact_mass", scene.contact_mass)
+
     def _check_points(self, mode: str, dof: int) -> None:
         grid = [k for k in ("r", "beta") if getattr(self, k) is not None]
         if grid:
@@ -300,6 +333,8 @@ class SceneSpec:
         with within("points"):
             points = as_points(self.points)
         for k in ("gamma", "kappa"):
+            if getattr(points, k) is not None and self.structure is not None:
+                raise StudyError(f"points.{k}", "a structure has no chain ratios")
             if getattr(points, k) is not None and dof < 2:
                 raise StudyError(f"points.{k}", "dof 1 has no mass or stiffness ratios")
             if isinstance(getattr(self, k), Axis):
@@ -335,6 +370,8 @@ class SceneSpec:
 
     def scene_at(self, **ratios: float) -> Scene:
         """The :class:`tasks.Scene` with the swept ratios set to ``ratios``."""
+        if self.structure is not None:
+            return self.structure
         fixed = {k: getattr(self, k) for k in ("gamma", "kappa") if k not in self.sweeps}
         return Scene(self.contact, self.dof, self.contact_mass, **{**fixed, **ratios})
 
@@ -344,13 +381,19 @@ class SceneSpec:
         return self.scene_at(**{k: a.first for k, a in self.sweeps.items()})
 
     def scene_attr(self) -> dict[str, object]:
-        """``Scene.to_dict()`` with each swept field given as its list of values."""
+        """``Scene.to_dict()`` with each swept field given as its list of values
+        (a structure: what it is, its matrices being variables of the result)."""
+        if self.structure is not None:
+            return structures.scene_attr(self.structure, self.beam)
         d = self.base_scene.to_dict()
         for k, a in self.sweeps.items():
             d[k] = [float(v) for v in a.values_array()]
         return d
 
     def to_toml_dict(self) -> dict[str, object]:
+        if self.structure is not None:
+            d = {"name": self.name, **structures.toml_fields(self.structure, self.beam)}
+            return d | self._axes_toml()
         d: dict[str, object] = {
             "name": self.name,
             "contact": self.contact,
@@ -364,6 +407,10 @@ class SceneSpec:
                 if isinstance(v, Axis)
                 else (list(v) if isinstance(v, tuple) else v)
             )
+        return d | self._axes_toml()
+
+    def _axes_toml(self) -> dict[str, object]:
+        d: dict[str, object] = {}
         if self.points is not None:
             d["points"] = self.points.to_toml_value()
         else:
@@ -381,11 +428,20 @@ class SceneSpec:
 _SCENE_KEYS = tuple(f.name for f in dataclass_fields(SceneSpec))
 
 
-def _read_scene(raw: object, path: str) -> SceneSpec:
-    """One ``[[scene]]`` table; errors are prefixed with ``path`` (``scene[0]``)."""
+def _read_scene(raw: object, path: str, directory: Path) -> SceneSpec:
+    """One ``[[scene]]`` table; errors are prefixed with ``path`` (``scene[0]``).
+
+    A ``.npz`` path of ``matrices`` is relative to ``directory`` (the study file's).
+    """
     t = _Table(raw, path)
-    kw = t.given(_SCENE_KEYS)
+    kw = t.given(tuple(k for k in _SCENE_KEYS if k != "structure"))
     t.finish()
+    if "matrices" in kw or "beam" in kw:
+        for k in ("dof", "contact_mass"):
+            if k in kw:
+                raise StudyError(t.at(k), "a structure's DOFs and contact come from its matrices")
+        if isinstance(kw.get("matrices"), str):
+            kw["matrices"] = str(directory / kw["matrices"])
     mode = kw.get("mode", "grid")
     if mode != "adaptive":
         for k in ADAPTIVE_KEYS:
@@ -408,18 +464,6 @@ def _read_scene(raw: object, path: str) -> SceneSpec:
 
 
 # --------------------------------------------------------------------------- the study
-def _kind(mode: int) -> str:
-    """What a file system entry that is not a regular file is (for the message)."""
-    kinds = {
-        stat.S_IFDIR: "a directory",
-        stat.S_IFIFO: "a FIFO (named pipe)",
-        stat.S_IFCHR: "a character device",
-        stat.S_IFBLK: "a block device",
-        stat.S_IFSOCK: "a socket",
-    }
-    return kinds.get(stat.S_IFMT(mode), "not a regular file")
-
-
 def read_study_text(path: Path) -> str:
     """The text of a study file: a regular file of at most ``MAX_STUDY_BYTES`` bytes, UTF-8.
 
@@ -432,7 +476,7 @@ def read_study_text(path: Path) -> str:
         st = os.stat(path)
         if not stat.S_ISREG(st.st_mode):
             raise StudyError(
-                "", f"a study file must be a regular file, this is {_kind(st.st_mode)}", where
+                "", f"a study file must be a regular file, this is {entry_kind(st.st_mode)}", where
             )
         fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_NOCTTY", 0))
     except FileNotFoundError:
@@ -443,7 +487,7 @@ def read_study_text(path: Path) -> str:
         st = os.fstat(fd)
         if not stat.S_ISREG(st.st_mode):
             raise StudyError(
-                "", f"a study file must be a regular file, this is {_kind(st.st_mode)}", where
+                "", f"a study file must be a regular file, this is {entry_kind(st.st_mode)}", where
             )
         with os.fdopen(os.dup(fd), "rb") as f:
             data = f.read(MAX_STUDY_BYTES + 1)
@@ -568,7 +612,9 @@ class Study:
             raise StudyError("", f"TOML syntax error: {exc}", source) from None
         except RecursionError:  # tables or arrays nested hundreds deep
             raise StudyError("", "TOML nested too deeply to read", source) from None
-        return cls.from_dict(data, source=source, text=text, default_name=path.stem)
+        return cls.from_dict(
+            data, source=source, text=text, default_name=path.stem, directory=path.parent
+        )
 
     @classmethod
     def from_dict(
@@ -578,16 +624,23 @@ class Study:
         source: str | None = None,
         text: str | None = None,
         default_name: str = "study",
+        directory: str | os.PathLike | None = None,
     ) -> Study:
-        """Validate a study given as plain data (the structure of the TOML file)."""
+        """Validate a study given as plain data (the structure of the TOML file).
+
+        ``directory``: where the ``.npz`` files of scenes of matrices are
+        (default: the current directory; a study file's own directory for
+        :meth:`from_toml`).
+        """
+        where = Path.cwd() if directory is None else Path(directory)
         try:
-            study = cls._parse(data, default_name)
+            study = cls._parse(data, default_name, where)
             return replace(study, text=text if text is not None else study.to_toml(), source=source)
         except StudyError as exc:
             raise exc.with_source(source) from None
 
     @classmethod
-    def _parse(cls, data: Mapping[str, object], default_name: str) -> Study:
+    def _parse(cls, data: Mapping[str, object], default_name: str, directory: Path) -> Study:
         top = _Table(data, "")
         head = _Table(top.get("study", {}), "study")
         kw = head.given(("description", "fidelity", "max_points", "task_seconds", "chunk_points"))
@@ -602,7 +655,7 @@ class Study:
         if not isinstance(raw_scenes, list) or not raw_scenes:
             raise StudyError("scene", "must be a non-empty array of tables ([[scene]])")
         top.finish()
-        scenes = tuple(_read_scene(s, f"scene[{i}]") for i, s in enumerate(raw_scenes))
+        scenes = tuple(_read_scene(s, f"scene[{i}]", directory) for i, s in enumerate(raw_scenes))
         return cls(name=name, scenes=scenes, overrides=tuple(settings.items()), **kw)
 
     def validated(self) -> Study:

@@ -27,6 +27,8 @@ of the study layer but its errors (no import circle).
 
 from __future__ import annotations
 
+import stat
+
 from study.errors import StudyError
 from tasks.classifier import BETA_MAX, R_RANGE
 from tasks.scene import RATIO_RANGE
@@ -44,6 +46,7 @@ __all__ = [
     "check_name",
     "check_range",
     "check_size",
+    "entry_kind",
 ]
 
 #: Longest study or scene name: names become file names (``NAME.nc``,
@@ -80,3 +83,15 @@ def check_size(n: int, field: str) -> None:
     """An axis or point list of at most :data:`MAX_AXIS` values (``n`` may be any int)."""
     if n > MAX_AXIS:
         raise StudyError(field, f"an axis holds at most {MAX_AXIS:,} values, got {n:,}")
+
+
+def entry_kind(mode: int) -> str:
+    """What a file system entry that is not a regular file is (for a message)."""
+    kinds = {
+        stat.S_IFDIR: "a directory",
+        stat.S_IFIFO: "a FIFO (named pipe)",
+        stat.S_IFCHR: "a character device",
+        stat.S_IFBLK: "a block device",
+        stat.S_IFSOCK: "a socket",
+    }
+    return kinds.get(stat.S_IFMT(mode), "not a regular file")

@@ -41,6 +41,7 @@ from study.errors import StudyFailed
 from study.plans import ScenePlan
 from study.preflight import older_result_note
 from study.store import TMP_SUFFIX, WorkDir, fsync_dir, os_cause
+from study.structures import structure_variables
 from study.trace import TRACE_FIELDS
 from tasks import regimes
 from tasks.adaptive import ADAPTIVE_FIELDS
@@ -239,7 +240,7 @@ def _attrs(name: str) -> dict[str, object]:
 def scalar_ratios(spec) -> dict[str, float]:
     """gamma and kappa of a scene where they are one number and not swept (dof >= 2)."""
     out = {}
-    if spec.dof < 2:
+    if spec.dof < 2 or spec.structure is not None:
         return out
     for name in ("gamma", "kappa"):
         if name in spec.sweeps:
@@ -290,11 +291,15 @@ def scene_dataset(plan: ScenePlan, study: Study) -> tuple[xr.Dataset, dict[str, 
     data_vars.update(bounds)
     for name in bounds:
         encoding[name] = {"zlib": True, "complevel": 4}
+    if spec.structure is not None:  # what recomputes it (docs/results.md)
+        for name, (vdims, values, vattrs) in structure_variables(spec.structure).items():
+            data_vars[name] = xr.Variable(vdims, values, vattrs)
+            encoding[name] = {"zlib": True, "complevel": 4}
     attrs = {
         "scene": json.dumps(spec.scene_attr()),
         "scene_name": spec.name,
         "scene_label": spec.base_scene.label,
-        "contact": spec.contact,
+        "contact": spec.base_scene.contact,
         "dof": spec.dof,
         "contact_mass": spec.contact_mass,
         "mode": spec.mode,

@@ -40,7 +40,7 @@ def trace_chunk(task: dict) -> dict[str, np.ndarray]:
     from analysis import boundaries
     from tasks.trace import trace_boundaries
 
-    scene = Scene(**task["scene"])
+    scene = Scene.from_dict(task["scene"])
     r = np.asarray(task["r"], dtype=float)
     beta = np.asarray(task["beta"], dtype=float)
     step = float(np.min(np.diff(beta))) if beta.size > 1 else 1e-3 * float(beta.max())

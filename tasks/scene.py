@@ -293,6 +293,19 @@ class Scene:
             "kappa": list(self.kappa) if isinstance(self.kappa, tuple) else self.kappa,
         }
 
+    @classmethod
+    def from_dict(cls, data: dict[str, object]) -> Scene:
+        """The scene of :meth:`to_dict` (a chain, or a scene of matrices, JSON lists)."""
+        if data.get("contact") != MATRICES:
+            return cls(**data)
+        return cls.from_matrices(
+            data["mass"],
+            data["stiffness"],
+            data["load"],
+            data["contact_dofs"],
+            damping=data.get("damping"),
+        )
+
     # ---------------------------------------------------------------- matrices
     def _chain_only(self, what: str) -> None:
         if self.structure is not None:

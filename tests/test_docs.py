@@ -201,7 +201,23 @@ mode = "adaptive"
 coarse_step = 4
 r = {start = 0.5, stop = 1.5, num = 9}
 beta = {start = 0.0, stop = 1.5, num = 9}
+
+[[scene]]
+name = "matrices"
+contact = {between = [0, 1]}
+damping = {rayleigh = [0.05, 0.0]}
+r = {start = 0.5, stop = 1.5, num = 3}
+beta = {start = 0.0, stop = 1.2, num = 3}
+[scene.matrices]
+mass = [[1.0, 0.0], [0.0, 2.0]]
+stiffness = [[2.0, -1.0], [-1.0, 1.0]]
+load = [1.0, 0.0]
 """
+STRUCTURE_TABLE = {
+    name: row
+    for row in md_table(RESULTS, "| structure variable | dtype |")
+    for name in names(row[0])
+}
 
 
 @pytest.fixture(scope="module")
@@ -230,9 +246,11 @@ def test_variable_table_matches_the_fields_of_the_code():
         assert dims_of(VARIABLES[name][2]) is None and dims_of(VARIABLES[name][3]) is None
 
 
-@pytest.mark.parametrize(("scene", "column"), [("grid", 2), ("points", 3), ("adaptive", 2)])
+@pytest.mark.parametrize(
+    ("scene", "column"), [("grid", 2), ("points", 3), ("adaptive", 2), ("matrices", 2)]
+)
 def test_variable_table_matches_a_written_file(written, scene, column):
-    ds = written[scene].to_dataset()
+    ds = written[scene].to_dataset().drop_vars(STRUCTURE_TABLE, errors="ignore")
     sweeps = {"gamma", "kappa"}
     expected = {
         name
@@ -254,10 +272,24 @@ def test_variable_table_matches_a_written_file(written, scene, column):
         assert [d for d in dims if d in sweeps] == list(dims[: len(set(dims) & sweeps)]), name
 
 
+def test_structure_table_matches_the_code_and_a_written_file(written):
+    """A scene of matrices stores its matrices (results.md); the chain scenes do not."""
+    from study.structures import STRUCTURE_VARIABLES
+
+    assert set(STRUCTURE_TABLE) == set(STRUCTURE_VARIABLES)
+    ds = written["matrices"].to_dataset()
+    for name, row in STRUCTURE_TABLE.items():
+        assert str(ds[name].dtype) == row[1], name
+        assert ds[name].dims == dims_of(row[2]) == STRUCTURE_VARIABLES[name][0], name
+    assert ds.damping_matrix.attrs["damping"] == "rayleigh 0.05 0.0"
+    for scene in ("grid", "points", "adaptive"):
+        assert not set(STRUCTURE_TABLE) & set(written[scene].to_dataset().data_vars), scene
+
+
 def test_coordinate_table_matches_a_written_file(written):
     rows = {n: row for row in md_table(RESULTS, "| coordinate | dtype |") for n in names(row[0])}
     seen = set()
-    for scene in ("grid", "points", "adaptive"):
+    for scene in ("grid", "points", "adaptive", "matrices"):
         ds = written[scene].to_dataset()
         for name in ds.coords:
             assert name in rows, name
@@ -269,7 +301,7 @@ def test_coordinate_table_matches_a_written_file(written):
 def test_every_written_attribute_is_documented(written):
     section = RESULTS[RESULTS.index("## Attributes") : RESULTS.index("## Figures")]
     documented = set(re.findall(r"`([A-Za-z_0-9]+)`", section))
-    for scene in ("grid", "points", "adaptive"):
+    for scene in ("grid", "points", "adaptive", "matrices"):
         missing = set(written[scene].to_dataset().attrs) - documented
         assert not missing, (scene, missing)
     assert not set(written.attrs) - documented
