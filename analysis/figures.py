@@ -26,8 +26,8 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 from numpy.typing import ArrayLike
 
+from analysis.deviations import BOUNDARIES
 from analysis.scoring import (
-    BOUNDARIES,
     Agreement,
     available_methods,
     regime_codes,

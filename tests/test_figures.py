@@ -8,8 +8,9 @@ import xarray as xr
 
 from analysis import figures
 from analysis.design import characteristic_r, map_dataset, optimal_beta
+from analysis.deviations import BoundaryDeviation
 from analysis.report import _max_rel, percent
-from analysis.scoring import BoundaryDeviation, score_dataset
+from analysis.scoring import score_dataset
 from tasks import Scene
 
 

@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 import xarray as xr
 
+from analysis.deviations import column_boundaries
 from analysis.scoring import (
     REGIME_ORDER,
     agreement,
     agreement_points,
     agreement_trace,
-    column_boundaries,
     regime_from_bounds,
     score_dataset,
 )
