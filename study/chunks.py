@@ -31,7 +31,7 @@ from study.definition import SceneSpec, Study
 from study.verify import simulator_version
 
 #: Bump when the meaning of a chunk changes, so old work folders are not reused.
-CHUNK_FORMAT = 2  # 2: design quantities (amplitude, dissipation, ...)
+CHUNK_FORMAT = 3  # 2: design quantities (amplitude, dissipation, ...); 3: viscous dissipation
 #: Fraction of the points an adaptive scene is expected to simulate (planning only).
 ADAPTIVE_SIMULATED_FRACTION = 0.05
 
