@@ -9,18 +9,18 @@ real ones, all with ``Re nu <= 0``. A *pair* is a conjugate pair, or two real
 eigenvalues. With ``w_i = rho_i v_i`` (i = 1, 2 the members of the pair; for a
 conjugate pair ``w_2 = conj(w_1)``) the real coordinate
 
-    eta = sum_i w_i^T (nu_i M + C) x + r w_i^T M x'                        (4.7)
+    eta = sum_i w_i^T (nu_i M + C) x + r w_i^T M x'                        (4.8)
 
 obeys exactly (``j`` the other member)
 
     eta'' + 2 sigma eta' + Omega^2 eta = a cos(tau) + c,
-    2 sigma = -(nu_1 + nu_2) / r,  Omega^2 = nu_1 nu_2 / r^2,               (4.8)
+    2 sigma = -(nu_1 + nu_2) / r,  Omega^2 = nu_1 nu_2 / r^2,               (4.9)
     a = -sum_i nu_j w_i . p / r^2,  c = -sum_i nu_j w_i . q / r^2,
 
 provided ``sum_i w_i . p = 0`` (``rho`` is chosen so), and its derivative is
 
     eta' = xi + o,  xi = sum_i nu_i (w_i^T (nu_i M + C) x / r + w_i^T M x'),
-    o = sum_i w_i . q / r.                                                  (4.9)
+    o = sum_i w_i . q / r.                                                  (4.10)
 
 In the scaled state ``(x, r x')`` the map to ``(eta, r xi)`` of all pairs is the
 r-independent real ``2n x 2n`` matrix ``L`` returned here (``V = L^-1`` maps
@@ -30,7 +30,7 @@ because ``sigma >= 0`` and ``Omega^2 > 0`` for every pair.
 
 Refused (``ValueError``): repeated or defective eigenvalues (the eigenvectors
 do not span the state space), an odd number of real eigenvalues, and a pair
-of real eigenvalues whose coordinate (4.7) cannot both avoid the harmonic load
+of real eigenvalues whose coordinate (4.8) cannot both avoid the harmonic load
 in ``eta'`` and stay independent of ``xi``.
 """
 
@@ -62,7 +62,7 @@ class DampedPairs:
     V : ndarray (2n, 2n)
         ``L^-1``.
     load_w : ndarray (n, n)
-        ``sum_i w_i`` (real): ``o = load_w @ q / r`` (Eq. 4.9).
+        ``sum_i w_i`` (real): ``o = load_w @ q / r`` (Eq. 4.10).
     load_nu : ndarray (n, n)
         ``-sum_i nu_j w_i`` (real): ``a = load_nu @ p / r^2``, ``c = load_nu @ q / r^2``.
     """

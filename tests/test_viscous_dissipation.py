@@ -33,7 +33,16 @@ SCENES = {
     "rayleigh_2dof": lambda: _rayleigh("2dof_ground_m1", 0.1, 0.02),
     "rayleigh_base": lambda: _rayleigh("2dof_base_m1", 0.2, 0.02),
     "beam": lambda: beam(n_elements=6, modes=3, damping=("rayleigh", 0.05, 0.002)),
+    "general": lambda: _general(),
 }
+
+
+def _general() -> Scene:
+    """Full M, K and a non-proportional C (docs/structures.md 4.5)."""
+    M = np.array([[2.0, 0.4, 0.1], [0.4, 1.5, 0.3], [0.1, 0.3, 1.0]])
+    K = np.array([[3.0, -1.0, 0.2], [-1.0, 2.5, -0.8], [0.2, -0.8, 1.8]])
+    C = np.array([[0.3, 0.1, 0.0], [0.1, 0.05, 0.0], [0.0, 0.0, 0.02]])
+    return Scene.from_matrices(M, K, [1.0, 0.5, 0.0], ("ground", 2), damping=C)
 
 
 @pytest.mark.parametrize("name", list(SCENES))

@@ -170,6 +170,31 @@ def orbit_design(r, beta, scene, settings, state, period, samples, dout):
     b = ctx[CTX_B]
     g_load = ctx[CTX_G_LOAD]
     damped = ctx[CTX_SC][DAMPED] != 0.0
+    C = scene[25]  # general damping only (else empty): r x'^T C x' directly
+    if beta == 0.0 and C.shape[0] == n:  # linear, general damping (pairs, eta' = xi)
+        seg = ctx[CTX_SEG_SLIP]
+        V = ctx[CTX_PHI]
+        cos_v = np.zeros(n)
+        sin_v = np.zeros(n)
+        for i in range(n):
+            vc = 0.0
+            vs = 0.0
+            for k in range(n):
+                P, Q = particular(seg[OMEGA, k], seg[DAMP, k], seg[LOAD_COS, k])
+                vc += V[i, k] * P + V[i, n + k] * Q
+                vs += V[i, k] * Q - V[i, n + k] * P
+                cos_v[i] += V[n + i, k] * P + V[n + i, n + k] * Q
+                sin_v[i] += V[n + i, k] * Q - V[n + i, n + k] * P
+            dout[i] = math.hypot(vc, vs)
+            dout[n + i] = math.hypot(vc - c, vs)
+        dout[2 * n + DESIGN_FORCE] = 0.0
+        dout[2 * n + DESIGN_DISSIPATION] = 0.0
+        visc = 0.0
+        for i in range(n):
+            for j in range(n):
+                visc += C[i, j] * (cos_v[i] * cos_v[j] + sin_v[i] * sin_v[j])
+        dout[2 * n + DESIGN_VISCOUS] = math.pi * r * visc
+        return 0
     if beta == 0.0 and damped:  # linear, damped: sum_k phi_k (P_k cos + Q_k sin)
         seg = ctx[CTX_SEG_SLIP]
         phi = ctx[CTX_PHI]
@@ -336,7 +361,7 @@ def orbit_design(r, beta, scene, settings, state, period, samples, dout):
     dout[2 * n + DESIGN_DISSIPATION] = beta * slip / period
     viscous = 0.0
     if damped:
-        viscous = _viscous_work(ctx, work, rec, taus, r) / period
+        viscous = _viscous_work(ctx, work, rec, taus, r, C) / period
     dout[2 * n + DESIGN_VISCOUS] = viscous
     return count
 
@@ -353,11 +378,12 @@ def _harmonic_viscous(seg, r):
 
 
 @njit(cache=True)
-def _viscous_work(ctx, work, rec, taus, r):
+def _viscous_work(ctx, work, rec, taus, r, C):
     """``int r x'^T C x' dtau`` over ``[taus[0], taus[-1]]``: 4-point Gauss-Legendre on
     every interval between consecutive ``taus`` (events among them). In the sliding
     modes (proportional damping, docs/structures.md 4.1) ``r x'^T C x' =
-    2 r^2 sum_k sigma_k eta_k'^2`` with ``eta' = phi^T Gamma x'`` for any velocity."""
+    2 r^2 sum_k sigma_k eta_k'^2`` with ``eta' = phi^T Gamma x'`` for any velocity;
+    general damping (``C`` not empty) takes ``r x'^T C x'`` itself."""
     seg = ctx[CTX_SEG_SLIP]
     phi_t_gamma = ctx[CTX_PHI_T_GAMMA]
     n = seg.shape[1]
@@ -371,13 +397,20 @@ def _viscous_work(ctx, work, rec, taus, r):
     states = sample_states(ctx, work, rec, nodes)
     etad = np.empty(n)
     total = 0.0
+    general = C.shape[0] == n
     for s in range(m):
         h = taus[s + 1] - taus[s]
         for g in range(nq):
-            _matvec(phi_t_gamma, states[s * nq + g, n:].copy(), etad)
             power = 0.0
-            for k in range(n):
-                power += seg[DAMP, k] * etad[k] * etad[k]
+            if general:
+                for i in range(n):
+                    for j in range(n):
+                        power += C[i, j] * states[s * nq + g, n + i] * states[s * nq + g, n + j]
+                power *= 0.5 / r  # so that 2 r^2 power = r x'^T C x'
+            else:
+                _matvec(phi_t_gamma, states[s * nq + g, n:].copy(), etad)
+                for k in range(n):
+                    power += seg[DAMP, k] * etad[k] * etad[k]
             total += h * _GL_WEIGHTS[g] * power
     return 2.0 * r * r * total
 

@@ -46,7 +46,7 @@ def _held_response(seg_stick, phi_s, T, n):
         eta, etad = held_modal_state(seg_stick)
         x = np.zeros(n)
         xd = np.zeros(n)
-        _stick_state(phi_s, T, np.zeros(n), 0.0, eta, etad, np.zeros(2 * m), x, xd)
+        _stick_state(phi_s, T, np.zeros(n), 0.0, eta, etad, np.zeros(2 * m), x, xd, np.zeros(m))
         X[:n] = x
         X[n:] = xd
         return X, True
