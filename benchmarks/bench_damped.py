@@ -117,7 +117,7 @@ def damped_vs_undamped(n: int, repeats: int) -> None:
         Scene.from_matrices(**{**kw, "damping": dashpot}),
     )
     cant = beam(12, contact_node=10, modes=3).matrices()
-    local = np.zeros((3, 3))
+    local = np.zeros_like(cant["mass"])
     local[0, 0] = 0.05  # a dashpot at the contact
     pairs["cantilever_3modes_dashpot"] = (
         Scene.from_matrices(**cant),
