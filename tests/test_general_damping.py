@@ -110,3 +110,30 @@ def test_full_matrix_rayleigh_classifies_as_rayleigh():
     ra, rb = classify(a, r, beta), classify(b, r, beta)
     assert np.array_equal(ra.regime, rb.regime)
     np.testing.assert_allclose(rb.slip_amplitude, ra.slip_amplitude, rtol=1e-9, atol=1e-14)
+
+
+def test_heavy_damping_with_real_eigenvalues_against_scipy():
+    """Overdamped pairs (real damped eigenvalues, cosh / sinh propagation) in the
+    simulator: regimes and slip amplitudes (1e-4) of the scipy reference."""
+    rng = np.random.default_rng(5)
+    M, K = _spd(3, rng), _spd(3, rng)
+    B = rng.standard_normal((3, 3))
+    scene = Scene.from_matrices(M, K, rng.standard_normal(3), ("ground", 1), damping=3.0 * B @ B.T)
+    nu = np.linalg.eigvals(
+        np.block(
+            [
+                [np.zeros((3, 3)), np.eye(3)],
+                [-np.linalg.solve(M, K), -np.linalg.solve(M, 3.0 * B @ B.T)],
+            ]
+        )
+    )
+    assert np.sum(np.abs(nu.imag) < 1e-9) >= 2  # some real eigenvalues
+    r = np.array([0.4, 1.0, 2.0])
+    bc, bm = closed_form.boundaries(scene, r, "exact")
+    for beta in (0.5 * bc, 0.5 * (bc + bm), 1.3 * bm):
+        res = classify(scene, r, beta)
+        for i in range(r.size):
+            code, info = paper_method(scene, float(r[i]), float(beta[i]), cycles=60)
+            assert int(res.regime[i]) == code, (r[i], beta[i])
+            if code != regimes.NO_MOTION:
+                assert res.slip_amplitude[i] == pytest.approx(info["amplitude"], rel=1e-4)

@@ -77,6 +77,11 @@ def test_viscous_dissipation_without_friction_is_the_harmonic_one(name):
         expected = np.pi * float(np.real(X.conj() @ C @ X))
         res = classify(scene, r, 0.0)
         assert float(res.dissipation_viscous) == pytest.approx(expected, rel=1e-10)
+        # and the amplitudes of the same harmonic response
+        b = scene.contact_vector()
+        assert float(res.slip_amplitude) == pytest.approx(abs(b @ X), rel=1e-10)
+        own = res.amplitude if scene.contact != "base" else res.amplitude_relative
+        np.testing.assert_allclose(own, np.abs(X), rtol=1e-10)
 
 
 def test_undamped_scenes_report_zero_viscous_dissipation():
