@@ -8,7 +8,8 @@ Run from the repository root::
 
 1. **Damped vs undamped** (same run, same points): each of a few scenes is
    classified undamped and with Rayleigh damping (``("rayleigh", a, b)``,
-   docs/structures.md 4) on the same seeded (r, beta) sample; points per second
+   docs/structures.md 4), or with a non-proportional dashpot (rows ``*_dashpot``,
+   docs/structures.md 4.5), on the same seeded (r, beta) sample; points per second
    and the damped / undamped cost ratio (best of ``--repeats``).
 2. **Undamped, old vs new** (``--old``: a checkout of the code before damping, e.g.
    ``git archive <commit> | tar -x -C DIR``): the same undamped sample is timed in a
@@ -106,6 +107,21 @@ def damped_vs_undamped(n: int, repeats: int) -> None:
     pairs["cantilever_3modes"] = (
         beam(12, contact_node=10, modes=3),
         beam(12, contact_node=10, modes=3, damping=("rayleigh", 0.02, 0.002)),
+    )
+    # non-proportional damping (pairs, docs/structures.md 4.5): a dashpot at one DOF
+    kw = chains["5dof_ground_m4"].matrices()
+    dashpot = np.zeros((5, 5))
+    dashpot[2, 2] = 0.1
+    pairs["5dof_ground_m4_dashpot"] = (
+        Scene.from_matrices(**kw),
+        Scene.from_matrices(**{**kw, "damping": dashpot}),
+    )
+    cant = beam(12, contact_node=10, modes=3).matrices()
+    local = np.zeros_like(cant["mass"])
+    local[0, 0] = 0.05  # a dashpot at the contact
+    pairs["cantilever_3modes_dashpot"] = (
+        Scene.from_matrices(**cant),
+        Scene.from_matrices(**{**cant, "damping": local}),
     )
     for name, (plain, damped) in pairs.items():
         t0 = _best(plain, r, beta, repeats)

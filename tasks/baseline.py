@@ -54,7 +54,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from tasks import regimes
-from tasks.result import ClassifyResult
+from tasks.result import DESIGN_FIELDS, ClassifyResult
 from tasks.scene import Scene
 
 CYCLES = 100
@@ -392,7 +392,7 @@ def classify_paper_method(
     )
     res = ClassifyResult.empty(r_arr.shape, scene.dof)
     res.initial_condition[...] = regimes.IC_REST
-    for name in ("amplitude", "amplitude_relative", "contact_force_amplitude", "dissipation"):
+    for name in DESIGN_FIELDS:
         getattr(res, name)[...] = np.nan  # not measured by the paper's method
     for idx in np.ndindex(r_arr.shape):
         code, info = paper_method(scene, float(r_arr[idx]), float(beta_arr[idx]), **kwargs)

@@ -202,7 +202,7 @@ def result_from_kernel(
     ``out`` is :func:`tasks.kernel.run_points`' ``(n_points, N_OUT)`` array of
     the first start, ``others`` those of the other starts (initial condition
     ``codes``, the first one that of ``out``); ``design``
-    :func:`tasks.kernel.orbit_designs`' ``(n_points, 2 N + 2)`` of the first
+    :func:`tasks.kernel.orbit_designs`' ``(n_points, 2 N + 3)`` of the first
     start's orbit (NaN design quantities if omitted); ``base`` says the
     kernel's coordinates are relative to the base (base-fixed wall,
     docs/theory.md 2).
@@ -235,7 +235,7 @@ def design_fields(
     (all None when ``design`` is None: not computed)."""
     if design is None:
         return dict.fromkeys(DESIGN_FIELDS)
-    n = (design.shape[1] - 2) // 2
+    n = (design.shape[1] - kernel.DESIGN_SCALARS) // 2
     own, other = design[:, :n], design[:, n : 2 * n]
     absolute, relative = (other, own) if base else (own, other)
     return {
@@ -243,4 +243,5 @@ def design_fields(
         "amplitude_relative": relative.reshape((*shape, n)),
         "contact_force_amplitude": design[:, 2 * n + kernel.DESIGN_FORCE].reshape(shape),
         "dissipation": design[:, 2 * n + kernel.DESIGN_DISSIPATION].reshape(shape),
+        "dissipation_viscous": design[:, 2 * n + kernel.DESIGN_VISCOUS].reshape(shape),
     }

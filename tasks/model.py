@@ -34,10 +34,12 @@ arithmetic, so both give bit-identical arrays. With damping, ``damping`` holds
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from scipy.linalg import eigh
 
+from tasks.damped_pairs import damped_pairs
 from tasks.scene import Scene
 
 
@@ -60,6 +62,11 @@ class SceneModes:
     ``g = g_load . (p cos tau - K x)``), ``g_modes_s`` (g per stuck modal
     coordinate, ``g_load^T K T phi_s``), ``g_d0`` (``g_load^T K w``) and
     ``b_gamma_b`` (``b^T Gamma^-1 b``).
+
+    ``proportional`` is False for damping that is not diagonal in the modes of both
+    phases; :meth:`kernel_args` then gives the pairs of :mod:`tasks.damped_pairs`
+    (docs/structures.md 4.5). ``pairs``, if set, replaces :meth:`kernel_args`
+    (e.g. :func:`_pairs_args` of a proportional C, to test the general path).
     """
 
     n: int
@@ -93,6 +100,12 @@ class SceneModes:
     g_c: np.ndarray | None = None
     g_c_s: np.ndarray | None = None
     proportional: bool = True
+    pairs: tuple | None = None
+
+    @cached_property
+    def _general_args(self) -> tuple:
+        """:func:`_pairs_args` of a non-proportionally damped scene, computed once."""
+        return _pairs_args(self, self.damping)
 
     def load(self, r: float) -> np.ndarray:
         """Amplitude p of the harmonic load at frequency ratio r."""
@@ -103,22 +116,25 @@ class SceneModes:
 
         ``gamma`` is the diagonal of the mass matrix: the kernel uses it only for
         the energy scale of seeded random starts (exact for a diagonal mass).
-        The last four are the damping data (zeros when undamped): ``damp_slip``
+        Then come the damping data (zeros when undamped): ``damp_slip``
         and ``damp_stick`` (``c_k = phi_k^T C phi_k`` of both phases), ``g_c``
-        (``C^T g_load``) and ``g_c_s`` (``g_load^T C T phi_s``), docs/structures.md 4.
+        (``C^T g_load``) and ``g_c_s`` (``g_load^T C T phi_s``), docs/structures.md 4,
+        and two arrays that are empty unless the damping is not proportional:
+        ``C`` and the slip pairs' load matrix.
 
-        Raises
-        ------
-        ValueError
-            For damping that is not proportional (not diagonal in the modes of both
-            the sliding and the held system, docs/structures.md 4.1): the compiled
-            simulator propagates modal damping only (the reference for any ``C`` is
-            :mod:`tasks.baseline`, the closed forms :mod:`analysis.damped`).
+        Non-proportional damping (docs/structures.md 4.5) replaces the modal
+        arrays by those of the pairs of :mod:`tasks.damped_pairs` (``pairs``):
+        ``phi`` and ``phi_t_gamma`` become ``V`` and ``L`` (2n x 2n, on the scaled
+        state ``(x, r x')``), ``f_slip`` holds (constant load, offset of eta', alpha
+        times r) per unit friction force, ``d_static`` (constant load, offset) per
+        unit d0, ``g_modes_s`` and ``g_c_s`` the contact force's ``-alpha`` and
+        ``-delta / r`` of the stuck pairs; the kernel tells them apart by shape.
         """
-        if not self.proportional:
-            raise ValueError(
-                "damping: the simulator needs proportional damping (e.g. Rayleigh, "
-                "('rayleigh', a, b)); this C couples the modes of the sliding or held system"
+        if self.pairs is None and not self.proportional:
+            return self._general_args
+        if self.pairs is not None:
+            return tuple(
+                np.ascontiguousarray(a) if isinstance(a, np.ndarray) else a for a in self.pairs
             )
         c = np.ascontiguousarray
         zeros_n, zeros_m = np.zeros(self.n), np.zeros(self.lam_s.shape[0])
@@ -151,6 +167,8 @@ class SceneModes:
             c(self.g_modes_s),
             float(self.g_d0),
             *damping_arrays,
+            np.zeros((0, 0)),
+            np.zeros((0, 0)),
         )
 
 
@@ -218,6 +236,49 @@ def scene_modes(scene: Scene) -> SceneModes:
         damping=None if s is None or s.damping is None else np.array(s.damping),
         damping_kind="none" if s is None else s.damping_kind,
         **damping,
+    )
+
+
+def _pairs_args(modes: SceneModes, C: np.ndarray) -> tuple:
+    """:meth:`SceneModes.kernel_args` of a non-proportionally damped scene: the pairs of
+    :mod:`tasks.damped_pairs` of the sliding and the held system (docs/structures.md 4.5).
+    ``ValueError`` (one line, ``damping:``) for repeated or defective eigenvalues."""
+    n, M, K, b, T, w = modes.n, modes.mass, modes.stiffness, modes.b, modes.T, modes.w
+    m = T.shape[1]
+    slip = damped_pairs(M, C, K, modes.p0)
+    held = damped_pairs(T.T @ M @ T, T.T @ C @ T, T.T @ K @ T, T.T @ modes.p0)
+    V, Vs = slip.V, held.V
+    tkw = T.T @ (K @ w)
+    gkt = modes.g_load @ K @ T
+    gct = modes.g_load @ C @ T
+    return (
+        modes.gamma,
+        modes.stiffness,
+        modes.b,
+        modes.p0,
+        bool(modes.load_scales_r2),
+        slip.lam,
+        V,
+        slip.L,
+        b @ V[n:, n:],
+        np.concatenate([slip.load_nu @ b, slip.load_w @ b, b @ V[n:, :n]]),
+        T,
+        w,
+        held.lam,
+        Vs,
+        held.L,
+        held.load_nu @ T.T,
+        np.concatenate([held.load_nu @ tkw, held.load_w @ tkw]),
+        modes.proj,
+        modes.g_load,
+        gkt @ Vs[:m, :m] + gct @ Vs[m:, :m],
+        float(modes.g_d0),
+        slip.damp,
+        held.damp,
+        C.T @ modes.g_load,
+        gkt @ Vs[:m, m:] + gct @ Vs[m:, m:],
+        C,
+        slip.load_nu,
     )
 
 

@@ -42,6 +42,12 @@ FIELDS: dict[str, tuple[str, str]] = {
         "energy dissipated by the contact per excitation cycle (/ (k_1 Y^2): beta times "
         "the slip distance per cycle, docs/theory.md 2)",
     ),
+    "dissipation_viscous": (
+        "float64",
+        "energy dissipated by the viscous damping per excitation cycle (/ (k_1 Y^2): the "
+        "integral of r x'^T C x' over the period per cycle, docs/structures.md 1; 0 when "
+        "undamped)",
+    ),
     "asymptotic": (
         "bool",
         "no motion reached asymptotically: from a start off the held steady state above "
@@ -101,7 +107,12 @@ MASS_FIELDS: tuple[str, ...] = ("amplitude", "amplitude_relative")
 #: Design quantities of the converged orbit: None in a :class:`ClassifyResult`
 #: computed with ``design=False`` (not computed; absent from ``as_dict`` and
 #: ``to_dataset``).
-DESIGN_FIELDS: tuple[str, ...] = (*MASS_FIELDS, "contact_force_amplitude", "dissipation")
+DESIGN_FIELDS: tuple[str, ...] = (
+    *MASS_FIELDS,
+    "contact_force_amplitude",
+    "dissipation",
+    "dissipation_viscous",
+)
 
 #: CF flag attributes of the coded fields (``flag_values`` / ``flag_meanings``).
 FLAGS: dict[str, dict[str, object]] = {
@@ -171,6 +182,7 @@ class ClassifyResult:
     amplitude_relative: np.ndarray | None
     contact_force_amplitude: np.ndarray | None
     dissipation: np.ndarray | None
+    dissipation_viscous: np.ndarray | None
     asymptotic: np.ndarray
     regime_rest: np.ndarray
     regimes_reached: np.ndarray

@@ -168,11 +168,18 @@ class Scene:
         damping : None, array_like (n, n), ("rayleigh", a, b) or ("modal", zeta)
             ``C``, symmetric positive semidefinite; ``a M + b K``; or damping
             ratios of the modes of ``(K, M)`` (one number for all, or n numbers).
+            The simulator propagates every phase exactly: in the modes when C is
+            proportional in both the sliding and the held system (Rayleigh
+            always), otherwise in the real pairs of the damped eigenvalues
+            (docs/structures.md 4.5).
 
         Raises
         ------
         ValueError
-            One line naming the argument and the rule it breaks.
+            One line naming the argument and the rule it breaks. The simulator
+            (not this constructor) refuses, with one ``damping:`` line, a
+            non-proportional C whose damped eigenvalues coincide or are
+            defective (e.g. a critically damped mode), docs/structures.md 4.5.
 
         A list of contacts (``[("ground", 1), ("between", 2, 3)]``) with
         ``beta_ratio`` gives a :class:`tasks.multicontact.MultiScene` (docs/contacts.md).

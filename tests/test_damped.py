@@ -226,12 +226,15 @@ def test_energy_balance_per_period():
         assert w_load == pytest.approx(w_visc + w_fric, rel=1e-6)
 
 
-def test_non_proportional_damping_is_refused_by_the_simulator_only():
-    rng = np.random.default_rng(3)
+def test_repeated_damped_eigenvalues_are_refused_by_the_simulator_only():
+    """Non-proportional damping is simulated through the pairs of docs/structures.md
+    4.5 (tests/test_general_damping.py), except when two damped eigenvalues coincide:
+    here the held system (DOFs 0, 1) is M = K = I, C = 0.1 I."""
+    K = np.array([[1.0, 0.0, 0.3], [0.0, 1.0, 0.2], [0.3, 0.2, 2.0]])
     scene = Scene.from_matrices(
-        _spd(3, rng), _spd(3, rng), [1.0, 0.0, 0.0], ("ground", 2), damping=0.1 * _spd(3, rng)
+        np.eye(3), K, [1.0, 0.0, 0.0], ("ground", 2), damping=np.diag([0.1, 0.1, 0.5])
     )
-    with pytest.raises(ValueError, match="^damping: the simulator needs proportional"):
+    with pytest.raises(ValueError, match="^damping: two damped eigenvalues coincide"):
         classify(scene, 1.0, 0.1)
     assert np.isfinite(closed_form.motion_bound(scene, [1.0])[0])  # closed forms take it
 

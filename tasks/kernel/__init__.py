@@ -59,6 +59,8 @@ with numba_cache.kernel_cache():
         DESIGN_FORCE,
         DESIGN_MAX_SAMPLES,
         DESIGN_SAMPLES,
+        DESIGN_SCALARS,
+        DESIGN_VISCOUS,
         orbit_design,
         orbit_designs,
     )
@@ -111,6 +113,8 @@ __all__ = [
     "DESIGN_FORCE",
     "DESIGN_MAX_SAMPLES",
     "DESIGN_SAMPLES",
+    "DESIGN_SCALARS",
+    "DESIGN_VISCOUS",
     "EV_END",
     "EV_GRAZE",
     "EV_REVERSAL",

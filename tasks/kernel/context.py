@@ -38,6 +38,19 @@ def _event_cap(events):
 
 
 @njit(cache=True)
+def _scaled_pairs_map(A, r):
+    """The map of :mod:`tasks.damped_pairs` at ratio r. ``A`` acts on the scaled state
+    ``(x, r x')`` -> ``(eta, r xi)`` or back; the result acts on ``(x, x')`` ->
+    ``(eta, xi)`` or back (the same scaling both ways)."""
+    h = A.shape[0] // 2
+    out = A.copy()
+    for i in range(2 * h):
+        for j in range(2 * h):
+            out[i, j] = A[i, j] * (r if j >= h else 1.0) / (r if i >= h else 1.0)
+    return out
+
+
+@njit(cache=True)
 def _context(r, beta, scene, settings):
     """Per-point constants of both phases, the held initial condition and its phase.
 
@@ -72,6 +85,8 @@ def _context(r, beta, scene, settings):
         damp_stick,
         g_c,
         g_c_s,
+        _,
+        load_slip,
     ) = scene
     event_tol = settings[0]
     step_fraction = settings[1]
@@ -82,6 +97,12 @@ def _context(r, beta, scene, settings):
     m = lam_s.shape[0]
     r2 = r * r
     p = p0 * r2 if load_scales_r2 else p0.copy()
+    general = phi.shape[0] != n  # non-proportional damping: pairs (docs/structures.md 4.5)
+    if general:
+        phi = _scaled_pairs_map(phi, r)
+        phi_t_gamma = _scaled_pairs_map(phi_t_gamma, r)
+        phi_s = _scaled_pairs_map(phi_s, r)
+        phi_s_t_gamma_s = _scaled_pairs_map(phi_s_t_gamma_s, r)
     seg_slip = np.zeros((N_ROWS, n))
     om_max = 1.0
     for k in range(n):
@@ -89,9 +110,11 @@ def _context(r, beta, scene, settings):
         seg_slip[OMEGA, k] = om
         acc = 0.0
         for i in range(n):
-            acc += phi[i, k] * p[i]
+            acc += (load_slip[k, i] if general else phi[i, k]) * p[i]
         seg_slip[LOAD_COS, k] = acc / r2
         seg_slip[DELTA, k] = w_slip[k]
+        if general:  # contact velocity: alpha = b . V_v,eta / r
+            seg_slip[ALPHA, k] = f_slip[2 * n + k] / r
         seg_slip[DAMP, k] = 0.5 * damp_slip[k] / r  # sigma = c_k / (2 r), Eq. 4.1
         om_max = max(om_max, om)
     h_slip = step_fraction * math.pi / om_max
@@ -118,6 +141,12 @@ def _context(r, beta, scene, settings):
     for k in range(n):
         damped = damped or damp_slip[k] != 0.0
     sc[DAMPED] = 1.0 if damped else 0.0
+    if general:  # (constant load / r^2, offset of eta' / r) per unit force or d0
+        f_r2 = np.concatenate((f_slip[:n] / r2, f_slip[n : 2 * n] / r))
+        dstat_r2 = np.concatenate((d_static[:m] / r2, d_static[m:] / r))
+    else:
+        f_r2 = f_slip / r2
+        dstat_r2 = d_static / r2
     ctx = (
         seg_slip,
         seg_stick,
@@ -133,8 +162,8 @@ def _context(r, beta, scene, settings):
         phi_s,
         phi_s_t_gamma_s,
         proj,
-        f_slip / r2,
-        d_static / r2,
+        f_r2,
+        dstat_r2,
         g_load,
         _dot(g_load, p),
         g_d0,

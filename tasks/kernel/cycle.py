@@ -19,6 +19,7 @@ from numba import njit
 from tasks.kernel.events import never_unsticks, next_event
 from tasks.kernel.layout import (
     DAMPED,
+    ETAD_OFF,
     EV_END,
     EV_GRAZE,
     EV_REVERSAL,
@@ -163,7 +164,7 @@ def run_cycle(x, xd, mode, stick_start, stats, ctx, work, rec, rec_n, tau_start,
             else:
                 t, found = next_event(seg_stick, sc, remaining, h_stick, tol, eta_s, etad_s)
             g, _ = evaluate(seg_stick, sc, t, eta_s, etad_s)
-            _stick_state(phi_s, T, w, d0, eta_s, etad_s, q, x, xd)
+            _stick_state(phi_s, T, w, d0, eta_s, etad_s, q, x, xd, seg_stick[ETAD_OFF])
             stats[ST_STUCK_TIME] += t
             if t > stats[ST_LONGEST]:
                 stats[ST_LONGEST] = t
@@ -180,7 +181,7 @@ def run_cycle(x, xd, mode, stick_start, stats, ctx, work, rec, rec_n, tau_start,
             _start_slip(seg_slip, sc, x, xd, tau, s, v0, beta, f_r2, phi_t_gamma)
             t, found = next_event(seg_slip, sc, remaining, h_slip, tol, eta, etad)
             evaluate(seg_slip, sc, t, eta, etad)
-            _slip_state(phi, eta, etad, x, xd)
+            _slip_state(phi, eta, etad, x, xd, seg_slip[ETAD_OFF])
             if t > stats[ST_LONGEST]:
                 stats[ST_LONGEST] = t
                 stats[ST_MID] = tau + 0.5 * t

@@ -253,7 +253,21 @@ def held_force_amplitude(seg_stick, g_cos):
 @njit(cache=True)
 def linear_amplitude_damped(seg_slip):
     """Amplitude of ``b . x`` in the forced response of the sliding system without
-    friction: ``|sum_k w_k (P_k + i Q_k)|`` (row DELTA holds ``w_k = b . phi_k``)."""
+    friction: ``|sum_k w_k (P_k + i Q_k)|`` (row DELTA holds ``w_k = b . phi_k``).
+    General damping (row ALPHA not zero, docs/structures.md 4.5): the contact velocity
+    ``sum_k alpha_k eta_k + delta_k eta_k' = Vc cos tau + Vs sin tau`` has the
+    amplitude of ``b . x`` (unit frequency), ``hypot(Vc, Vs)``."""
+    general = False
+    for k in range(seg_slip.shape[1]):
+        general = general or seg_slip[ALPHA, k] != 0.0
+    if general:
+        vc = 0.0
+        vs = 0.0
+        for k in range(seg_slip.shape[1]):
+            P, Q = particular(seg_slip[OMEGA, k], seg_slip[DAMP, k], seg_slip[LOAD_COS, k])
+            vc += seg_slip[ALPHA, k] * P + seg_slip[DELTA, k] * Q
+            vs += seg_slip[ALPHA, k] * Q - seg_slip[DELTA, k] * P
+        return math.hypot(vc, vs)
     re = 0.0
     im = 0.0
     for k in range(seg_slip.shape[1]):

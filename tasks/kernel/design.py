@@ -2,7 +2,10 @@
 
 The orbit is replayed event by event and sampled exactly (closed-form phases);
 extrema between samples are located on the cubic Hermite interpolant of the
-exact values and velocities and evaluated exactly (docs/theory.md 2).
+exact values and velocities and evaluated exactly (docs/theory.md 2). The viscous
+dissipation of a damped orbit, the integral of ``r x'^T C x'`` (docs/structures.md
+1, Eq. 1.1), is a Gauss-Legendre quadrature on the same sub-intervals, whose ends
+include every event, so the integrand is analytic on each of them.
 """
 
 from __future__ import annotations
@@ -28,6 +31,7 @@ from tasks.kernel.layout import (
     CTX_P,
     CTX_PHI,
     CTX_PHI_S_T_GAMMA_S,
+    CTX_PHI_T_GAMMA,
     CTX_PROJ,
     CTX_SC,
     CTX_SEG_SLIP,
@@ -54,9 +58,25 @@ from tasks.kernel.records import sample_states
 # Columns of :func:`orbit_designs`'s output, per point (n = number of masses):
 # [0, n) amplitude of the scene coordinate q_i (x_i; z_i = x_i - y for a base-fixed wall),
 # [n, 2n) amplitude of the other coordinate q_i - c cos(tau) (c = -1 base-fixed, else +1),
-# 2n the contact force amplitude, 2n + 1 the energy dissipated per excitation cycle.
+# 2n the contact force amplitude, 2n + 1 the energy dissipated per excitation cycle by
+# the contact, 2n + 2 the energy dissipated per excitation cycle by the viscous damping.
 DESIGN_FORCE = 0  # offset from 2 n
 DESIGN_DISSIPATION = 1  # offset from 2 n
+DESIGN_VISCOUS = 2  # offset from 2 n
+#: Columns after the 2 n amplitudes.
+DESIGN_SCALARS = 3
+#: Gauss-Legendre nodes (on [0, 1]) and weights of the viscous dissipation quadrature.
+_GL_NODES = np.array(
+    [
+        0.5 - 0.5 * 0.8611363115940526,
+        0.5 - 0.5 * 0.3399810435848563,
+        0.5 + 0.5 * 0.3399810435848563,
+        0.5 + 0.5 * 0.8611363115940526,
+    ]
+)
+_GL_WEIGHTS = (
+    np.array([0.3478548451374538, 0.6521451548625461, 0.6521451548625461, 0.3478548451374538]) * 0.5
+)
 #: Samples per excitation cycle (at least; more where modal periods are short).
 DESIGN_SAMPLES = 32
 #: Samples per excitation cycle at most (very stiff chains: the modes far above
@@ -138,7 +158,9 @@ def orbit_design(r, beta, scene, settings, state, period, samples, dout):
     frames, the contact force amplitude (``beta`` while sliding, ``|g|`` while
     stuck) and the energy dissipated per excitation cycle, ``beta`` times the
     slip distance ``sum |delta (b . x)|`` over the slip phases, divided by
-    ``period`` (units k_1 Y^2; docs/theory.md 2). Returns the number of samples.
+    ``period`` (units k_1 Y^2; docs/theory.md 2), and the viscous energy dissipated
+    per excitation cycle (``int r x'^T C x' dtau`` over the orbit divided by
+    ``period``; 0 when undamped). Returns the number of samples.
     """
     ctx, work = _context(r, beta, scene, settings)[:2]
     n = (state.shape[0] - 2) // 2
@@ -148,6 +170,31 @@ def orbit_design(r, beta, scene, settings, state, period, samples, dout):
     b = ctx[CTX_B]
     g_load = ctx[CTX_G_LOAD]
     damped = ctx[CTX_SC][DAMPED] != 0.0
+    C = scene[25]  # general damping only (else empty): r x'^T C x' directly
+    if beta == 0.0 and C.shape[0] == n:  # linear, general damping (pairs, eta' = xi)
+        seg = ctx[CTX_SEG_SLIP]
+        V = ctx[CTX_PHI]
+        cos_v = np.zeros(n)
+        sin_v = np.zeros(n)
+        for i in range(n):
+            vc = 0.0
+            vs = 0.0
+            for k in range(n):
+                P, Q = particular(seg[OMEGA, k], seg[DAMP, k], seg[LOAD_COS, k])
+                vc += V[i, k] * P + V[i, n + k] * Q
+                vs += V[i, k] * Q - V[i, n + k] * P
+                cos_v[i] += V[n + i, k] * P + V[n + i, n + k] * Q
+                sin_v[i] += V[n + i, k] * Q - V[n + i, n + k] * P
+            dout[i] = math.hypot(vc, vs)
+            dout[n + i] = math.hypot(vc - c, vs)
+        dout[2 * n + DESIGN_FORCE] = 0.0
+        dout[2 * n + DESIGN_DISSIPATION] = 0.0
+        visc = 0.0
+        for i in range(n):
+            for j in range(n):
+                visc += C[i, j] * (cos_v[i] * cos_v[j] + sin_v[i] * sin_v[j])
+        dout[2 * n + DESIGN_VISCOUS] = math.pi * r * visc
+        return 0
     if beta == 0.0 and damped:  # linear, damped: sum_k phi_k (P_k cos + Q_k sin)
         seg = ctx[CTX_SEG_SLIP]
         phi = ctx[CTX_PHI]
@@ -162,6 +209,7 @@ def orbit_design(r, beta, scene, settings, state, period, samples, dout):
             dout[n + i] = math.hypot(vc - c, vs)
         dout[2 * n + DESIGN_FORCE] = 0.0
         dout[2 * n + DESIGN_DISSIPATION] = 0.0
+        dout[2 * n + DESIGN_VISCOUS] = _harmonic_viscous(seg, r)
         return 0
     if beta == 0.0:  # linear, undamped: the forced response (K - M)^-1 p cos tau
         seg = ctx[CTX_SEG_SLIP]
@@ -174,6 +222,7 @@ def orbit_design(r, beta, scene, settings, state, period, samples, dout):
             dout[n + i] = abs(v - c)
         dout[2 * n + DESIGN_FORCE] = 0.0
         dout[2 * n + DESIGN_DISSIPATION] = 0.0
+        dout[2 * n + DESIGN_VISCOUS] = 0.0
         return 0
     theta = state[2 * n + 1]
     rows = 32 * period  # grown (and the orbit replayed) if the events do not fit
@@ -310,18 +359,71 @@ def orbit_design(r, beta, scene, settings, state, period, samples, dout):
             force = max(force, abs(g))
     dout[2 * n + DESIGN_FORCE] = force
     dout[2 * n + DESIGN_DISSIPATION] = beta * slip / period
+    viscous = 0.0
+    if damped:
+        viscous = _viscous_work(ctx, work, rec, taus, r, C) / period
+    dout[2 * n + DESIGN_VISCOUS] = viscous
     return count
+
+
+@njit(cache=True)
+def _harmonic_viscous(seg, r):
+    """Viscous dissipation per cycle of the damped forced response without friction:
+    ``2 pi r^2 sum_k sigma_k (P_k^2 + Q_k^2)`` (``r c_k = 2 r^2 sigma_k``, Eq. 4.2)."""
+    acc = 0.0
+    for k in range(seg.shape[1]):
+        P, Q = particular(seg[OMEGA, k], seg[DAMP, k], seg[LOAD_COS, k])
+        acc += seg[DAMP, k] * (P * P + Q * Q)
+    return TWO_PI * r * r * acc
+
+
+@njit(cache=True)
+def _viscous_work(ctx, work, rec, taus, r, C):
+    """``int r x'^T C x' dtau`` over ``[taus[0], taus[-1]]``: 4-point Gauss-Legendre on
+    every interval between consecutive ``taus`` (events among them). In the sliding
+    modes (proportional damping, docs/structures.md 4.1) ``r x'^T C x' =
+    2 r^2 sum_k sigma_k eta_k'^2`` with ``eta' = phi^T Gamma x'`` for any velocity;
+    general damping (``C`` not empty) takes ``r x'^T C x'`` itself."""
+    seg = ctx[CTX_SEG_SLIP]
+    phi_t_gamma = ctx[CTX_PHI_T_GAMMA]
+    n = seg.shape[1]
+    nq = _GL_NODES.shape[0]
+    m = taus.shape[0] - 1
+    nodes = np.empty(m * nq)
+    for s in range(m):
+        h = taus[s + 1] - taus[s]
+        for g in range(nq):
+            nodes[s * nq + g] = taus[s] + h * _GL_NODES[g]
+    states = sample_states(ctx, work, rec, nodes)
+    etad = np.empty(n)
+    total = 0.0
+    general = C.shape[0] == n
+    for s in range(m):
+        h = taus[s + 1] - taus[s]
+        for g in range(nq):
+            power = 0.0
+            if general:
+                for i in range(n):
+                    for j in range(n):
+                        power += C[i, j] * states[s * nq + g, n + i] * states[s * nq + g, n + j]
+                power *= 0.5 / r  # so that 2 r^2 power = r x'^T C x'
+            else:
+                _matvec(phi_t_gamma, states[s * nq + g, n:].copy(), etad)
+                for k in range(n):
+                    power += seg[DAMP, k] * etad[k] * etad[k]
+            total += h * _GL_WEIGHTS[g] * power
+    return 2.0 * r * r * total
 
 
 @njit(cache=True)
 def orbit_designs(r, beta, scene, settings, out, final, samples):
     """:func:`orbit_design` for every converged point of :func:`run_points`' output.
 
-    Returns ``(design, n_samples)``: ``design`` is ``(n_points, 2 n + 2)``, NaN
+    Returns ``(design, n_samples)``: ``design`` is ``(n_points, 2 n + 3)``, NaN
     where the point has no steady state (regime code < 0).
     """
     n = scene[0].shape[0]
-    design = np.full((r.shape[0], 2 * n + 2), np.nan)
+    design = np.full((r.shape[0], 2 * n + DESIGN_SCALARS), np.nan)
     total = 0
     for i in range(r.shape[0]):
         if out[i, OUT_REGIME] < 0.0 or out[i, OUT_CONVERGED] == 0.0:

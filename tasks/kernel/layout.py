@@ -15,8 +15,10 @@ TWO_PI = 2.0 * math.pi
 # phase in its modal coordinates (tasks.kernel.propagation, Eq. (1)).
 # DAMP is the modal decay rate sigma (eta'' + 2 sigma eta' + ..., tasks.kernel.damping);
 # zero for every mode of an undamped scene.
-OMEGA, ETA0, ETAD0, LOAD_COS, LOAD_CONST, ALPHA, DELTA, DAMP = range(8)
-N_ROWS = 8
+# ETAD_OFF: the constant part o of eta' = xi + o of a pair of general (non-proportional)
+# damping (tasks.damped_pairs, docs/structures.md 4.5); unused otherwise.
+OMEGA, ETA0, ETAD0, LOAD_COS, LOAD_CONST, ALPHA, DELTA, DAMP, ETAD_OFF = range(9)
+N_ROWS = 9
 # Entries of the scalar segment array ``sc``. DAMPED: 1.0 when the scene is damped
 # (both phases then take tasks.kernel.damping), 0.0 for the undamped code path.
 TAU0, COS_TAU0, SIN_TAU0, OBS_COS, OBS0, KIND, SIGN, BETA, EVALS, WORK_CAP, DAMPED = range(11)

@@ -29,6 +29,7 @@ from tasks.kernel.layout import (
     DELTA,
     ETA0,
     ETAD0,
+    ETAD_OFF,
     KIND,
     KIND_SLIP,
     KIND_STICK,
@@ -77,11 +78,50 @@ def _contact_force(p, ctau, K, x, g_load):
 
 
 @njit(cache=True)
+def _to_pairs(L, x, xd, seg, offset_unit, load_unit, scale):
+    """General damping: ``(eta, xi) = L (x, x')``, ``eta' = xi + o`` with
+    ``o = scale offset_unit`` and the constant load ``scale load_unit``
+    (tasks.damped_pairs, docs/structures.md 4.5)."""
+    n = x.shape[0]
+    m = seg.shape[1]
+    for k in range(m):
+        e = 0.0
+        v = 0.0
+        for j in range(n):
+            e += L[k, j] * x[j] + L[k, n + j] * xd[j]
+            v += L[m + k, j] * x[j] + L[m + k, n + j] * xd[j]
+        off = scale * offset_unit[k]
+        seg[ETAD_OFF, k] = off
+        seg[ETA0, k] = e
+        seg[ETAD0, k] = v + off
+        seg[LOAD_CONST, k] = scale * load_unit[k]
+
+
+@njit(cache=True)
+def _from_pairs(V, eta, etad, off, x, xd):
+    """General damping: ``(x, x') = V (eta, eta' - o)``."""
+    n = x.shape[0]
+    m = eta.shape[0]
+    for i in range(n):
+        acc = 0.0
+        accd = 0.0
+        for k in range(m):
+            acc += V[i, k] * eta[k] + V[i, m + k] * (etad[k] - off[k])
+            accd += V[n + i, k] * eta[k] + V[n + i, m + k] * (etad[k] - off[k])
+        x[i] = acc
+        xd[i] = accd
+
+
+@njit(cache=True)
 def _start_slip(seg, sc, x, xd, tau, s, v0, beta, f_r2, phi_t_gamma):
-    _matvec(phi_t_gamma, x, seg[ETA0])
-    _matvec(phi_t_gamma, xd, seg[ETAD0])
-    for k in range(seg.shape[1]):
-        seg[LOAD_CONST, k] = -beta * s * f_r2[k]
+    n = x.shape[0]
+    if phi_t_gamma.shape[0] == n:
+        _matvec(phi_t_gamma, x, seg[ETA0])
+        _matvec(phi_t_gamma, xd, seg[ETAD0])
+        for k in range(seg.shape[1]):
+            seg[LOAD_CONST, k] = -beta * s * f_r2[k]
+    else:  # general damping: f_r2 = (constant load, offset) per unit friction force
+        _to_pairs(phi_t_gamma, x, xd, seg, f_r2[n:], f_r2[:n], -beta * s)
     sc[TAU0] = tau
     sc[COS_TAU0] = math.cos(tau)
     sc[SIN_TAU0] = math.sin(tau)
@@ -97,6 +137,7 @@ def _start_stick(seg, sc, x, xd, tau, beta, b, w, proj, phi_s_t_gamma_s, dstat_r
     """Freeze the contact at d0 = b . x; returns d0."""
     n = x.shape[0]
     m = seg.shape[1]
+    general = phi_s_t_gamma_s.shape[0] != m
     d0 = _dot(b, x)
     # q = proj (x - d0 w), q' = proj x' (momentum-conserving)
     for i in range(m):
@@ -107,15 +148,18 @@ def _start_stick(seg, sc, x, xd, tau, beta, b, w, proj, phi_s_t_gamma_s, dstat_r
             accd += proj[i, j] * xd[j]
         q[i] = acc
         q[m + i] = accd
-    for k in range(m):
-        e0 = 0.0
-        v0 = 0.0
-        for i in range(m):
-            e0 += phi_s_t_gamma_s[k, i] * q[i]
-            v0 += phi_s_t_gamma_s[k, i] * q[m + i]
-        seg[ETA0, k] = e0
-        seg[ETAD0, k] = v0
-        seg[LOAD_CONST, k] = -dstat_r2[k] * d0
+    if general:  # dstat_r2 = (constant load, offset) per unit d0
+        _to_pairs(phi_s_t_gamma_s, q[:m], q[m:], seg, dstat_r2[m:], dstat_r2[:m], -d0)
+    else:
+        for k in range(m):
+            e0 = 0.0
+            v0 = 0.0
+            for i in range(m):
+                e0 += phi_s_t_gamma_s[k, i] * q[i]
+                v0 += phi_s_t_gamma_s[k, i] * q[m + i]
+            seg[ETA0, k] = e0
+            seg[ETAD0, k] = v0
+            seg[LOAD_CONST, k] = -dstat_r2[k] * d0
     ctau = math.cos(tau)
     g0 = g_cos * ctau - g_d0 * d0
     for k in range(m):
@@ -123,6 +167,9 @@ def _start_stick(seg, sc, x, xd, tau, beta, b, w, proj, phi_s_t_gamma_s, dstat_r
     if sc[DAMPED] != 0.0:  # viscous part of g (row DELTA of the stuck phase)
         for k in range(m):
             g0 += seg[DELTA, k] * seg[ETAD0, k]
+        if general:  # g holds delta xi = delta (eta' - o)
+            for k in range(m):
+                g0 -= seg[DELTA, k] * seg[ETAD_OFF, k]
     sc[TAU0] = tau
     sc[COS_TAU0] = ctau
     sc[SIN_TAU0] = math.sin(tau)
@@ -135,23 +182,33 @@ def _start_stick(seg, sc, x, xd, tau, beta, b, w, proj, phi_s_t_gamma_s, dstat_r
 
 
 @njit(cache=True)
-def _slip_state(phi, eta, etad, x, xd):
+def _slip_state(phi, eta, etad, x, xd, off):
+    """``(x, x')`` of the slip phase's modal state (``off``: row ETAD_OFF, general
+    damping only)."""
+    if phi.shape[0] != x.shape[0]:
+        _from_pairs(phi, eta, etad, off, x, xd)
+        return
     _matvec(phi, eta, x)
     _matvec(phi, etad, xd)
 
 
 @njit(cache=True)
-def _stick_state(phi_s, T, w, d0, eta, etad, q, x, xd):
+def _stick_state(phi_s, T, w, d0, eta, etad, q, x, xd, off):
+    """``(x, x')`` of the stick phase's modal state (``off``: row ETAD_OFF, general
+    damping only)."""
     m = eta.shape[0]
     n = x.shape[0]
-    for i in range(m):
-        acc = 0.0
-        accd = 0.0
-        for k in range(m):
-            acc += phi_s[i, k] * eta[k]
-            accd += phi_s[i, k] * etad[k]
-        q[i] = acc
-        q[m + i] = accd
+    if phi_s.shape[0] != m:
+        _from_pairs(phi_s, eta, etad, off, q[:m], q[m:])
+    else:
+        for i in range(m):
+            acc = 0.0
+            accd = 0.0
+            for k in range(m):
+                acc += phi_s[i, k] * eta[k]
+                accd += phi_s[i, k] * etad[k]
+            q[i] = acc
+            q[m + i] = accd
     for j in range(n):
         acc = d0 * w[j]
         accd = 0.0

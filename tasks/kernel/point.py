@@ -109,7 +109,7 @@ def _resonant_growth(seg_slip, f_r2, beta):
     ``4 beta |phi_k . b| A / r^2``; the amplitude A grows without bound when
     ``beta < pi |a_k| / (4 |f_k|)`` (SDOF: beta < pi/4). Used only where the
     rate of growth can be too slow to see in simulation. A damped mode never
-    grows without bound (docs/structures.md 4.4).
+    grows without bound (docs/structures.md 4.6).
     """
     for k in range(seg_slip.shape[1]):
         w = seg_slip[OMEGA, k]

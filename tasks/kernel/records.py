@@ -27,6 +27,7 @@ from tasks.kernel.layout import (
     CTX_SEG_STICK,
     CTX_T,
     CTX_W,
+    ETAD_OFF,
     N_STATS,
     REC_MODE,
     REC_TAU,
@@ -115,7 +116,9 @@ def sample_states(ctx, work, rec, taus):
                 q,
             )
             evaluate(seg, ctx[CTX_SC], tau - tau0, eta_s, etad_s)
-            _stick_state(ctx[CTX_PHI_S], ctx[CTX_T], ctx[CTX_W], d0, eta_s, etad_s, q, x, xd)
+            _stick_state(
+                ctx[CTX_PHI_S], ctx[CTX_T], ctx[CTX_W], d0, eta_s, etad_s, q, x, xd, seg[ETAD_OFF]
+            )
         else:
             seg = ctx[CTX_SEG_SLIP]
             _start_slip(
@@ -131,7 +134,7 @@ def sample_states(ctx, work, rec, taus):
                 ctx[CTX_PHI_T_GAMMA],
             )
             evaluate(seg, ctx[CTX_SC], tau - tau0, eta, etad)
-            _slip_state(ctx[CTX_PHI], eta, etad, x, xd)
+            _slip_state(ctx[CTX_PHI], eta, etad, x, xd, seg[ETAD_OFF])
         out[i, :n] = x
         out[i, n:] = xd
     return out

@@ -46,7 +46,7 @@ def _held_response(seg_stick, phi_s, T, n):
         eta, etad = held_modal_state(seg_stick)
         x = np.zeros(n)
         xd = np.zeros(n)
-        _stick_state(phi_s, T, np.zeros(n), 0.0, eta, etad, np.zeros(2 * m), x, xd)
+        _stick_state(phi_s, T, np.zeros(n), 0.0, eta, etad, np.zeros(2 * m), x, xd, np.zeros(m))
         X[:n] = x
         X[n:] = xd
         return X, True
@@ -58,6 +58,8 @@ def _held_response(seg_stick, phi_s, T, n):
         if abs(den) < 1e-9 * max(seg_stick[OMEGA, k] ** 2, 1.0):
             return X, False
         zeta[k] = seg_stick[LOAD_COS, k] / den
+    # (pairs of a general C with an undamped held system: eta' = xi = 0 at tau = 0
+    # and d0 = 0, so the block phi_s[:m, :m] of V maps eta to q, docs/structures.md 4.5)
     for i in range(m):
         qi = 0.0
         for k in range(m):
