@@ -45,7 +45,7 @@ from study.verify import Expected, simulator_version
 from tasks.result import FIELDS, MASS_FIELDS, field_shape
 
 #: Bump when the meaning of a chunk changes, so old work folders are not reused.
-CHUNK_FORMAT = 4  # 2: design quantities (amplitude, ...); 3: no _shape entry; 4: dissipation_viscous
+CHUNK_FORMAT = 4  # 2: design quantities; 3: no _shape entry; 4: dissipation_viscous
 #: Returned by :meth:`ScenePlan.next_unit` when the plan needs results still computing.
 WAIT = "wait"
 #: Variables of a result unit beside its fields: the compute seconds (0-d).
