@@ -64,6 +64,10 @@ def _classify(scene: dict, settings: dict, r: np.ndarray, beta: np.ndarray) -> d
     from tasks import classify
 
     res = classify(Scene.from_dict(scene), r, beta, **settings)
+    if scene.get("contact") == "multi":  # several contacts (study.contacts)
+        from study.contacts import from_result
+
+        return from_result(res)
     return {name: np.asarray(getattr(res, name), dtype=dt) for name, (dt, _) in FIELDS.items()}
 
 

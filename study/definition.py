@@ -48,7 +48,7 @@ from typing import Any
 
 import numpy as np
 
-from study import fields, structures
+from study import contacts, fields, structures
 from study.axes import SPACINGS, Axis, Points
 from study.errors import StudyError, field_error
 from study.fields import show as _show
@@ -67,6 +67,7 @@ from study.limits import (
     entry_kind,
 )
 from tasks.fidelity import PRESETS, Settings, resolve
+from tasks.multicontact import MAX_CONTACTS, MultiScene
 from tasks.scene import Scene
 
 __all__ = ["ADAPTIVE_HINTS", "MODES", "SPACINGS", "Axis", "Points", "SceneSpec", "Study"]
@@ -251,7 +252,10 @@ class SceneSpec:
     matrices: object = field(default=None, compare=False, repr=False)
     beam: Mapping | None = field(default=None, compare=False)
     damping: object = field(default=None, compare=False, repr=False)
-    #: The scene of ``matrices`` or ``beam`` (None for a chain).
+    #: Several contacts (docs/contacts.md): ``beta_c = beta_ratio[c] * beta``, with a list
+    #: ``contact_mass`` (a chain) or a list ``contact`` (matrices).
+    beta_ratio: object = field(default=None, compare=False, repr=False)
+    #: The scene of ``matrices`` or ``beam``, or of several contacts (None for a chain).
     structure: Scene | None = field(default=None, init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -261,9 +265,18 @@ class SceneSpec:
         if self.matrices is not None or self.beam is not None:
             self._check_structure()
             dof = self.dof
+        elif fields.is_list(self.contact_mass) or fields.is_list(self.contact):
+            if self.damping is not None:
+                raise StudyError("damping", "applies to scenes of matrices or beams only")
+            self._check_chain_contacts()
+            dof = self.dof
         else:
             if self.damping is not None:
                 raise StudyError("damping", "applies to scenes of matrices or beams only")
+            if self.beta_ratio is not None:
+                raise StudyError(
+                    "beta_ratio", "applies to scenes with several contacts (a list contact_mass)"
+                )
             put("contact", fields.string(self.contact, "contact"))
             dof = fields.integer(self.dof, "dof", minimum=1)
             put("dof", dof)
@@ -277,6 +290,10 @@ class SceneSpec:
             raise StudyError("verify_fraction", f"must be in [0, 1], got {fraction:g}")
         put("verify_fraction", fraction)
         put("hint", fields.string(self.hint, "hint", ADAPTIVE_HINTS))
+        if contacts.is_multi(self.structure) and mode in ("trace", "adaptive"):
+            raise StudyError(
+                "mode", f"{mode!r} is not available for several contacts yet (grid and points are)"
+            )
         if self.points is not None:
             self._check_points(mode, dof)
         else:
@@ -302,6 +319,42 @@ class SceneSpec:
         unnamed = self.name is None or (isinstance(self.name, str) and not self.name)
         put("name", base.label if unnamed else _name(self.name, "name"))
 
+    def _check_chain_contacts(self) -> None:
+        """A chain with several contacts (a list ``contact_mass``); sets ``structure``."""
+        dof = fields.integer(self.dof, "dof", minimum=1)
+        raw = self.contact_mass
+        masses = list(raw) if fields.is_list(raw) else [raw]
+        if len(masses) > MAX_CONTACTS:
+            raise StudyError("contact_mass", f"at most {MAX_CONTACTS} contacts, got {len(masses)}")
+        masses = [fields.integer(j, f"contact_mass[{i}]", minimum=1) for i, j in enumerate(masses)]
+        kinds = self.contact
+        if fields.is_list(kinds):
+            kinds = [fields.string(k, f"contact[{i}]") for i, k in enumerate(kinds)]
+            if len(kinds) != len(masses):
+                raise StudyError(
+                    "contact", f"one kind per contact_mass ({len(masses)}), got {len(kinds)}"
+                )
+        else:
+            kinds = fields.string(kinds, "contact")
+        ratios = {}
+        for k in ("gamma", "kappa"):
+            ratios[k] = _ratio(getattr(self, k), k, dof)
+            if isinstance(ratios[k], Axis):
+                raise StudyError(k, "a sweep is not available with several contacts yet")
+        try:
+            scene = MultiScene.chain(kinds, dof, masses, beta_ratio=self.beta_ratio, **ratios)
+        except ValueError as exc:
+            raise field_error("", exc) from None
+        for key, value in (
+            ("dof", dof),
+            ("contact", kinds),
+            ("contact_mass", masses),
+            *ratios.items(),
+        ):
+            object.__setattr__(self, key, value)
+        object.__setattr__(self, "beta_ratio", list(scene.beta_ratio))
+        object.__setattr__(self, "structure", scene)
+
     def _check_structure(self) -> None:
         """A scene of matrices or a beam (:mod:`study.structures`); sets ``structure``."""
         if self.matrices is not None and self.beam is not None:
@@ -314,12 +367,19 @@ class SceneSpec:
                 raise StudyError("contact", "a beam's contact is beam.contact_node")
             scene = structures.beam_scene(self.beam, self.damping)
         else:
-            contact = structures.contact_spec(self.contact)
-            scene = structures.matrices_scene(self.matrices, contact, self.damping, Path.cwd())
+            contact = structures.contact_specs(self.contact)
+            scene = structures.matrices_scene(
+                self.matrices, contact, self.damping, Path.cwd(), self.beta_ratio
+            )
             object.__setattr__(self, "contact", contact)
+        if self.beta_ratio is not None and not contacts.is_multi(scene):
+            raise StudyError("beta_ratio", "applies to scenes with several contacts")
         object.__setattr__(self, "structure", structures.check_simulable(scene))
         object.__setattr__(self, "dof", scene.dof)
-        object.__setattr__(self, "contact_mass", scene.contact_mass)
+        if contacts.is_multi(scene):
+            object.__setattr__(self, "beta_ratio", list(scene.beta_ratio))
+        else:
+            object.__setattr__(self, "contact_mass", scene.contact_mass)
 
     def _check_points(self, mode: str, dof: int) -> None:
         grid = [k for k in ("r", "beta") if getattr(self, k) is not None]
@@ -383,6 +443,8 @@ class SceneSpec:
     def scene_attr(self) -> dict[str, object]:
         """``Scene.to_dict()`` with each swept field given as its list of values
         (a structure: what it is, its matrices being variables of the result)."""
+        if contacts.is_multi(self.structure):
+            return contacts.scene_attr(self.structure)
         if self.structure is not None:
             return structures.scene_attr(self.structure, self.beam)
         d = self.base_scene.to_dict()
@@ -391,7 +453,9 @@ class SceneSpec:
         return d
 
     def to_toml_dict(self) -> dict[str, object]:
-        if self.structure is not None:
+        if contacts.is_multi(self.structure) and self.matrices is not None:
+            return {"name": self.name, **contacts.toml_fields(self.structure)} | self._axes_toml()
+        if self.structure is not None and not contacts.is_multi(self.structure):
             d = {"name": self.name, **structures.toml_fields(self.structure, self.beam)}
             return d | self._axes_toml()
         d: dict[str, object] = {
@@ -400,6 +464,8 @@ class SceneSpec:
             "dof": self.dof,
             "contact_mass": self.contact_mass,
         }
+        if contacts.is_multi(self.structure):
+            d["beta_ratio"] = self.beta_ratio
         for k in ("gamma", "kappa"):
             v = getattr(self, k)
             d[k] = (

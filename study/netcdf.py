@@ -36,6 +36,7 @@ import netCDF4
 import numpy as np
 import xarray as xr
 
+from study import contacts
 from study.definition import Study
 from study.errors import StudyFailed
 from study.plans import ScenePlan
@@ -143,6 +144,8 @@ def _boundaries(scene, r: np.ndarray, method: str) -> tuple[np.ndarray, np.ndarr
 
 def _boundary_vars(plan: ScenePlan, axes: dict[str, np.ndarray]) -> dict[str, xr.Variable]:
     out: dict[str, xr.Variable] = {}
+    if contacts.is_multi(plan.spec.structure):  # no closed form bounds several contacts
+        return out
     for method in BOUNDARY_METHODS:
         groups = plan.boundary_groups(axes)
         dims, shape = next(groups)
@@ -164,13 +167,16 @@ def _boundary_vars(plan: ScenePlan, axes: dict[str, np.ndarray]) -> dict[str, xr
 
 # --------------------------------------------------------------------------- skeleton
 def _var_layout(
-    name: str, dims: tuple[str, ...], shape: tuple[int, ...], dof: int, planar: bool
+    name: str, dims: tuple[str, ...], shape: tuple[int, ...], plan: ScenePlan
 ) -> tuple[tuple[str, ...], tuple[int, ...]]:
-    """Dims and shape of one variable: per-mass fields have ``mass`` before the plane."""
-    if name not in MASS_FIELDS:
+    """Dims and shape of one variable: per-mass fields have ``mass`` before the plane,
+    per-contact fields of several contacts ``contact`` (:mod:`study.contacts`)."""
+    n = plan.trailing(name)
+    if not n:
         return dims, shape
-    k = len(dims) - (2 if planar else 1)
-    return (*dims[:k], "mass", *dims[k:]), (*shape[:k], dof, *shape[k:])
+    extra = "contact" if contacts.is_multi(plan.spec.structure) else "mass"
+    k = len(dims) - (2 if plan.planar else 1)
+    return (*dims[:k], extra, *dims[k:]), (*shape[:k], n, *shape[k:])
 
 
 def _nc_chunksizes(shape: tuple[int, ...], grid: bool = False) -> tuple[int, ...]:
@@ -264,14 +270,18 @@ def scene_dataset(plan: ScenePlan, study: Study) -> tuple[xr.Dataset, dict[str, 
     for name, value in scalar_ratios(spec).items():
         if name not in coords:
             coords[name] = xr.Variable((), value, COORD_ATTRS[name])
-    if any(name in MASS_FIELDS for name in variables):
+    multi = contacts.is_multi(spec.structure)
+    if multi:
+        for name, (values, vattrs) in contacts.contact_coordinate(spec.structure).items():
+            coords[name] = xr.Variable("contact", values, vattrs)
+    if any(name in MASS_FIELDS for name in variables) and not multi:
         coords["mass"] = xr.Variable(
             "mass", np.arange(1, spec.dof + 1, dtype=np.int32), COORD_ATTRS["mass"]
         )
     data_vars: dict[str, xr.Variable] = {}
     encoding: dict[str, dict] = {name: {"_FillValue": None} for name in coords}
     for name, dt in variables.items():
-        vdims, vshape = _var_layout(name, dims, shape, spec.dof, grid)
+        vdims, vshape = _var_layout(name, dims, shape, plan)
         enc: dict[str, object] = {
             "zlib": True,
             "complevel": 4,
@@ -285,14 +295,16 @@ def scene_dataset(plan: ScenePlan, study: Study) -> tuple[xr.Dataset, dict[str, 
             fill = np.full(vshape, _fill(dt), dtype=dt)
         else:
             fill = da.full(vshape, _fill(dt), dtype=dt, chunks=_fill_chunks_shape(vshape, grid))
-        data_vars[name] = xr.Variable(vdims, fill, _attrs(name))
+        vattrs = contacts.attrs(name, spec.structure.n_contacts) if multi else _attrs(name)
+        data_vars[name] = xr.Variable(vdims, fill, vattrs)
         encoding[name] = enc
     bounds = _boundary_vars(plan, axes)
     data_vars.update(bounds)
     for name in bounds:
         encoding[name] = {"zlib": True, "complevel": 4}
     if spec.structure is not None:  # what recomputes it (docs/results.md)
-        for name, (vdims, values, vattrs) in structure_variables(spec.structure).items():
+        arrays = (contacts.structure_variables if multi else structure_variables)(spec.structure)
+        for name, (vdims, values, vattrs) in arrays.items():
             data_vars[name] = xr.Variable(vdims, values, vattrs)
             encoding[name] = {"zlib": True, "complevel": 4}
     attrs = {
@@ -306,6 +318,9 @@ def scene_dataset(plan: ScenePlan, study: Study) -> tuple[xr.Dataset, dict[str, 
         "fidelity": study.fidelity,
         "settings": json.dumps(study.settings.to_dict(), sort_keys=True),
     }
+    if multi:  # several contacts: contact_mass is not one mass (the contact coordinates say)
+        del attrs["contact_mass"]
+        attrs["n_contacts"] = spec.structure.n_contacts
     attrs.update(plan.extra_attrs(axes))
     return xr.Dataset(data_vars, coords, attrs), encoding
 

@@ -39,10 +39,11 @@ from typing import ClassVar
 
 import numpy as np
 
+from study import contacts
 from study.cost import chunk_target, seconds_per_point
 from study.definition import SceneSpec, Study
 from study.verify import Expected, simulator_version
-from tasks.result import FIELDS, MASS_FIELDS, field_shape
+from tasks.result import FIELDS, MASS_FIELDS
 
 #: Bump when the meaning of a chunk changes, so old work folders are not reused.
 CHUNK_FORMAT = 4  # 2: design quantities; 3: no _shape entry; 4: dissipation_viscous
@@ -125,8 +126,17 @@ class ScenePlan:
         which a written result never holds.
         """
         starts = self.settings.get("starts") or [self.settings.get("initial_condition", "held")]
+        if contacts.is_multi(self.spec.structure):  # several contacts: study.contacts
+            return contacts.variables(list(starts))
         skip = () if "rest" in starts else ("regime_rest",)
         return {k: dt for k, (dt, _) in FIELDS.items() if k not in skip}
+
+    def trailing(self, name: str) -> int:
+        """Length of the trailing axis of a field in a unit's arrays (per mass or
+        per contact; the dim before the plane in the result), 0 for none."""
+        if contacts.is_multi(self.spec.structure):
+            return self.spec.structure.n_contacts if name in contacts.CONTACT_FIELDS else 0
+        return self.spec.dof if name in MASS_FIELDS else 0
 
     def layout(self) -> tuple[tuple[str, ...], tuple[int, ...], dict[str, str]]:
         """Dims, shape and {variable: dtype} of the per-point (or per-r) variables
@@ -235,7 +245,8 @@ class ScenePlan:
         """Fields, dtypes and shapes the stored result of ``chunk`` must hold."""
         shape = self.unit_shape(chunk)
         fields = {
-            k: (dt, field_shape(k, shape, self.spec.dof)) for k, dt in self.variables().items()
+            k: (dt, (*shape, n) if (n := self.trailing(k)) else shape)
+            for k, dt in self.variables().items()
         }
         return fields | SECONDS
 
@@ -288,7 +299,7 @@ class ScenePlan:
             index = self.index(chunk)
             k = len(chunk.sweep)
             for name in self.variables():
-                where = (*index[:k], slice(None), *index[k:]) if name in MASS_FIELDS else index
+                where = (*index[:k], slice(None), *index[k:]) if self.trailing(name) else index
                 yield name, where, np.asarray(arrays[name]).T
 
     def result_attrs(self, work) -> dict[str, object]:

@@ -31,9 +31,10 @@ from scipy.linalg import eigh
 
 from study import fields
 from study.errors import StudyError, field_error
-from study.fields import show
+from study.fields import show, within
 from study.limits import entry_kind
 from tasks.model import scene_modes
+from tasks.multicontact import MultiScene
 from tasks.scene import Scene
 from tasks.structures import beam
 
@@ -68,6 +69,18 @@ def contact_spec(raw: object) -> tuple:
     if not fields.is_list(value) or len(value) != 2:
         raise StudyError("contact.between", f"must be two DOF indices [i, j], got {show(value)}")
     return ("between", *(fields.integer(v, "contact.between", minimum=0) for v in value))
+
+
+def contact_specs(raw: object) -> tuple | list[tuple]:
+    """:func:`contact_spec`, or a list of them for several contacts
+    (``[{ground = 0}, {between = [1, 2]}]``, docs/contacts.md)."""
+    if isinstance(raw, list) and raw and all(isinstance(c, Mapping | tuple) for c in raw):
+        out = []
+        for i, c in enumerate(raw):
+            with within(f"contact[{i}]"):
+                out.append(contact_spec(c))
+        return out
+    return contact_spec(raw)
 
 
 def damping_spec(raw: object) -> object:
@@ -150,13 +163,18 @@ def _load(raw: object) -> object:
     return raw
 
 
-def matrices_scene(matrices: object, contact: object, damping: object, directory: Path) -> Scene:
-    """The scene of ``matrices`` (a table or a ``.npz`` path), ``contact`` and ``damping``."""
+def matrices_scene(
+    matrices: object, contact: object, damping: object, directory: Path, beta_ratio: object = None
+) -> Scene:
+    """The scene of ``matrices`` (a table or a ``.npz`` path), ``contact`` and ``damping``
+    (a list of contacts, with ``beta_ratio``: a :class:`tasks.multicontact.MultiScene`)."""
     if contact is None:
         raise StudyError(
             "contact", "a scene of matrices needs contact = {ground = j} or {between = [i, j]}"
         )
-    spec_contact = contact_spec(contact)
+    spec_contact = contact_specs(contact)
+    if beta_ratio is not None and not isinstance(spec_contact, list):
+        raise StudyError("beta_ratio", "applies to scenes with several contacts (a list contact)")
     spec_damping = damping_spec(damping)
     if isinstance(matrices, str | os.PathLike):
         path = Path(matrices)
@@ -188,6 +206,15 @@ def matrices_scene(matrices: object, contact: object, damping: object, directory
         if k not in arrays:
             raise StudyError(f"matrices.{k}", "is required")
     try:
+        if isinstance(spec_contact, list):
+            return MultiScene.from_matrices(
+                arrays["mass"],
+                arrays["stiffness"],
+                arrays["load"],
+                spec_contact,
+                beta_ratio=beta_ratio,
+                damping=spec_damping,
+            )
         return Scene.from_matrices(
             arrays["mass"], arrays["stiffness"], arrays["load"], spec_contact, damping=spec_damping
         )
@@ -227,6 +254,8 @@ def beam_scene(raw: object, damping: object) -> Scene:
 def check_simulable(scene: Scene) -> Scene:
     """``scene`` if the simulator takes it (proportional damping, docs/structures.md 4.1),
     else the one-line error of ``tasks.model`` naming ``damping``, before any run."""
+    if isinstance(scene, MultiScene):  # undamped: always simulable (docs/contacts.md)
+        return scene
     try:
         scene_modes(scene).kernel_args()
     except ValueError as exc:

@@ -303,6 +303,10 @@ class Scene:
     @classmethod
     def from_dict(cls, data: dict[str, object]) -> Scene:
         """The scene of :meth:`to_dict` (a chain, or a scene of matrices, JSON lists)."""
+        if data.get("contact") == "multi":
+            from tasks.multicontact import MultiScene
+
+            return MultiScene.from_dict(data)
         if data.get("contact") != MATRICES:
             return cls(**data)
         return cls.from_matrices(

@@ -226,6 +226,43 @@ class MultiScene:
 
         return Scene.from_matrices(**self.structures[k].kwargs())
 
+    def to_dict(self) -> dict[str, object]:
+        """Plain data (JSON lists) that :meth:`from_dict` turns back into this scene."""
+
+        def plain(v):
+            if isinstance(v, np.ndarray):
+                return v.tolist()
+            if isinstance(v, tuple):
+                return [plain(x) for x in v]
+            return v
+
+        kw = self.structures[0].kwargs()
+        return {
+            "contact": "multi",
+            "dof": self.dof,
+            "mass": plain(kw["mass"]),
+            "stiffness": plain(kw["stiffness"]),
+            "load": plain(kw["load"]),
+            "contacts": [plain(c) for c in self.contacts],
+            "beta_ratio": list(self.beta_ratio),
+            "label": self.label_hint,
+        }
+
+    @classmethod
+    def from_dict(cls, data: dict[str, object]) -> MultiScene:
+        """The scene of :meth:`to_dict`."""
+        load = data["load"]
+        if isinstance(load, list) and load and load[0] == "base":
+            load = ("base", np.asarray(load[1], dtype=float))
+        return cls.from_matrices(
+            data["mass"],
+            data["stiffness"],
+            load,
+            [tuple(c) for c in data["contacts"]],
+            beta_ratio=data["beta_ratio"],
+            label=data.get("label", ""),
+        )
+
     def _key(self) -> tuple:
         return (tuple(s._key() for s in self.structures), self.beta_ratio)
 

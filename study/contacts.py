@@ -1,0 +1,208 @@
+"""Scenes with several Coulomb contacts in a study: their fields and layout (docs/results.md).
+
+A scene with several contacts (:class:`tasks.multicontact.MultiScene`,
+docs/contacts.md) writes per-contact fields with a dimension ``contact``
+(before the plane, as per-mass fields have ``mass``) and a per-point
+``regime_combined`` (:func:`tasks.multicontact.combined_label`). One-contact
+scenes never go through this module: their files are unchanged.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from study.errors import StudyError
+from tasks import regimes
+from tasks.multicontact import MAX_CONTACTS, MultiScene
+from tasks.result import FIELDS, field_attrs
+
+#: Per-contact fields (a trailing axis ``contact`` in memory, the dim ``contact``
+#: in a written result) and their meanings where they differ from one contact's.
+CONTACT_FIELDS: dict[str, str] = {
+    "regime": "steady-state motion regime of each contact (codes: docs/regimes.md)",
+    "stops_per_cycle": "stick phases of each contact in one steady-state period",
+    "slip_amplitude": "half peak-to-peak relative displacement b_c . x of each contact",
+    "stick_fraction": "fraction of the period each contact is stuck in steady state",
+    "dissipation": (
+        "energy dissipated by each contact per excitation cycle (/ (k_1 Y^2): beta_c times "
+        "the slip distance per cycle)"
+    ),
+    "contact_force_amplitude": (
+        "largest friction force of each contact over the steady-state period (/ (k_1 Y); "
+        "beta_c whenever the contact slides)"
+    ),
+    "regime_rest": "regime of each contact reached from rest (-127 if rest was not a start)",
+}
+#: Per-point fields of a several-contact scene (meanings as for one contact).
+POINT_FIELDS: tuple[str, ...] = (
+    "converged",
+    "cycles",
+    "period",
+    "initial_condition",
+    "asymptotic",
+    "start_dependent",
+)
+#: The combined label: one code per point (:func:`combined_attrs`).
+COMBINED = "regime_combined"
+
+#: dtypes of every field of a several-contact scene, in the order they are written.
+MULTI_DTYPES: dict[str, str] = {
+    **{name: FIELDS[name][0] for name in CONTACT_FIELDS},
+    COMBINED: "int16",
+    **{name: FIELDS[name][0] for name in POINT_FIELDS},
+}
+
+
+def is_multi(scene: object) -> bool:
+    """A scene with several contacts."""
+    return isinstance(scene, MultiScene)
+
+
+def check_scene(scene: MultiScene, field: str) -> MultiScene:
+    """Refuse what a study cannot simulate with several contacts (one line naming ``field``)."""
+    if scene.n_contacts > MAX_CONTACTS:
+        raise StudyError(field, f"at most {MAX_CONTACTS} contacts, got {scene.n_contacts}")
+    return scene
+
+
+def variables(starts: list[str]) -> dict[str, str]:
+    """{variable: dtype} of a several-contact scene (``regime_rest`` where rest is a start)."""
+    skip = () if "rest" in starts else ("regime_rest",)
+    return {k: dt for k, dt in MULTI_DTYPES.items() if k not in skip}
+
+
+def from_result(res) -> dict[str, np.ndarray]:
+    """The arrays of a :class:`tasks.multicontact.MultiResult` under the study's names."""
+    out = {}
+    for name, dt in MULTI_DTYPES.items():
+        value = res.combined if name == COMBINED else getattr(res, name)
+        out[name] = np.asarray(value, dtype=dt)
+    return out
+
+
+def combined_meanings(k: int) -> tuple[np.ndarray, str]:
+    """CF ``flag_values`` and ``flag_meanings`` of ``regime_combined`` for k contacts:
+    the negative codes of :mod:`tasks.regimes`, then ``sum_c regime_c 3^c``
+    (``c0_stick_slip_c1_no_motion``: contact 0 first)."""
+    negatives = sorted(regimes.UNDETERMINED)
+    values = list(negatives)
+    meanings = [regimes.UNDETERMINED[c] for c in negatives]
+    for code in range(3**k):
+        digits = [(code // 3**c) % 3 for c in range(k)]
+        values.append(code)
+        meanings.append("_".join(f"c{c}_{regimes.REGIMES[d]}" for c, d in enumerate(digits)))
+    return np.array(values, dtype=np.int16), " ".join(meanings)
+
+
+def attrs(name: str, k: int) -> dict[str, object]:
+    """CF attributes of a field of a several-contact scene."""
+    if name == COMBINED:
+        values, meanings = combined_meanings(k)
+        return {
+            "long_name": "combined regime of the contacts",
+            "comment": (
+                "sum over contacts c of regime_c * 3^c (contact 0 the least significant "
+                "ternary digit) when every contact's regime is determined; otherwise the "
+                "most severe (smallest) negative code of the contacts (docs/results.md)"
+            ),
+            "flag_values": values,
+            "flag_meanings": meanings,
+        }
+    out = field_attrs(name)
+    if name in CONTACT_FIELDS:
+        out["comment"] = CONTACT_FIELDS[name]
+    return out
+
+
+def contact_coordinate(scene: MultiScene) -> dict[str, tuple]:
+    """Coordinates along ``contact``: its index, what it is (``ground 0``,
+    ``between 1 2``, DOF indices from 0) and its ``beta_ratio``."""
+    k = scene.n_contacts
+    where = np.array([" ".join(str(x) for x in c) for c in scene.contacts], dtype=object)
+    return {
+        "contact": (
+            np.arange(k, dtype=np.int32),
+            {"long_name": "index c of the contact (0 = the first listed)", "units": "1"},
+        ),
+        "contact_where": (
+            where,
+            {"long_name": "the contact: 'ground j' (b = e_j) or 'between i j' (b = e_j - e_i)"},
+        ),
+        "beta_ratio": (
+            np.array(scene.beta_ratio, dtype=float),
+            {
+                "long_name": "friction ratio of the contact over beta",
+                "comment": "beta_c = beta_ratio_c * beta (docs/contacts.md 1)",
+                "units": "1",
+            },
+        ),
+    }
+
+
+def _plain(v: object) -> object:
+    if isinstance(v, np.ndarray):
+        return v.tolist()
+    if isinstance(v, tuple | list):
+        return [_plain(x) for x in v]
+    return v
+
+
+def describe(scene: MultiScene) -> str:
+    """What the scene is, for titles: ``2-DOF structure, 2 contacts (ground 0, ground 1)``."""
+    where = ", ".join(" ".join(str(x) for x in c) for c in scene.contacts)
+    return f"{scene.dof}-DOF structure, {scene.n_contacts} contacts ({where})"
+
+
+def scene_attr(scene: MultiScene) -> dict[str, object]:
+    """The ``scene`` attribute of a result: what the scene is (its arrays are
+    variables, :func:`study.structures.structure_variables`)."""
+    return {
+        "contact": "multi",
+        "dof": scene.dof,
+        "contacts": _plain(scene.contacts),
+        "beta_ratio": list(scene.beta_ratio),
+        "load": "base" if scene.load_scales_r2 else "force",
+        "damping": "none",
+        "description": describe(scene),
+    }
+
+
+def toml_fields(scene: MultiScene) -> dict[str, object]:
+    """The keys of a ``[[scene]]`` table of matrices that give ``scene`` again."""
+    s = scene.structures[0]
+    load = {"base": _plain(s.load_spec[1])} if s.load_scales_r2 else _plain(s.load_spec)
+    contact = [{kind: idx[0] if kind == "ground" else list(idx)} for kind, *idx in scene.contacts]
+    return {
+        "matrices": {"mass": _plain(s.mass), "stiffness": _plain(s.stiffness), "load": load},
+        "contact": contact,
+        "beta_ratio": list(scene.beta_ratio),
+    }
+
+
+def structure_variables(scene: MultiScene) -> dict[str, tuple[tuple[str, ...], np.ndarray, dict]]:
+    """The arrays that recompute the scene: name -> (dims, values, attrs), as
+    :func:`study.structures.structure_variables` with one contact direction per contact."""
+    s = scene.structures[0]
+    load = s.load_spec[1] if s.load_scales_r2 else s.load_spec
+    values = {
+        "mass_matrix": (("dof", "dof2"), s.mass, "mass matrix M of Eq. 1.1 of docs/contacts.md"),
+        "stiffness_matrix": (("dof", "dof2"), s.stiffness, "stiffness matrix K of Eq. 1.1"),
+        "load_vector": (
+            ("dof",),
+            np.asarray(load, dtype=float),
+            "load p of Eq. 1.1, or the influence vector u of a base load",
+        ),
+        "contact_vector": (
+            ("contact", "dof"),
+            scene.contact_vectors().T,
+            "contact direction b_c of Eq. 1.1 of each contact (slip velocity b_c . x')",
+        ),
+    }
+    out = {}
+    for name, (dims, value, meaning) in values.items():
+        attrs: dict[str, object] = {"long_name": meaning.split(" of Eq.")[0], "units": "1"}
+        attrs["comment"] = meaning
+        if name == "load_vector":
+            attrs["load_kind"] = "base" if s.load_scales_r2 else "force"
+        out[name] = (dims, np.array(value, dtype=np.float64), attrs)
+    return out
