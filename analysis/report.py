@@ -23,7 +23,7 @@ import netCDF4
 import numpy as np
 import xarray as xr
 
-from analysis import figures, starts
+from analysis import contacts, figures, starts
 from analysis.scoring import (
     REGIME_ORDER,
     Agreement,
@@ -79,7 +79,14 @@ def open_result(path: str | os.PathLike) -> tuple[dict[str, xr.Dataset], dict[st
 
 def _needed(ds: xr.Dataset) -> xr.Dataset:
     """The variables the report reads (regime and boundaries), attributes kept."""
-    wanted = ("regime", "amplitude", "amplitude_relative", "simulated", "verification")
+    wanted = (
+        "regime",
+        "regime_combined",
+        "amplitude",
+        "amplitude_relative",
+        "simulated",
+        "verification",
+    )
     keep = [v for v in ds.data_vars if v in wanted or str(v).startswith("beta_")]
     keep += [v for v in ds.data_vars if v in starts.START_VARIABLES]
     keep += [v for v in ds.data_vars if "dof" in ds[v].dims]  # a structure's matrices
@@ -503,10 +510,15 @@ def build_report(
     """
     out_dir = Path(out_dir)
     scenes, attrs = open_result(result_path)
-    whole = {name: score_dataset(ds) for name, ds in scenes.items()}
+    # several contacts: no closed form bounds them, nothing scored (analysis.contacts)
+    whole = {
+        name: {} if contacts.is_multi(ds) else score_dataset(ds) for name, ds in scenes.items()
+    }
     # an adaptive map is scored on its simulated points (the map itself for boundaries)
     scores = {
-        name: score_dataset(simulated_only(ds)) if is_adaptive(ds) else whole[name]
+        name: score_dataset(simulated_only(ds))
+        if is_adaptive(ds) and not contacts.is_multi(ds)
+        else whole[name]
         for name, ds in scenes.items()
     }
     kinds = {name: "adaptive" if is_adaptive(ds) else scene_kind(ds) for name, ds in scenes.items()}
@@ -525,6 +537,11 @@ def build_report(
     lines += _summary(scores, kinds)
     images: list[Path] = []
     for name, ds in scenes.items():
+        if contacts.is_multi(ds):
+            more, paths = contacts.section(name, ds, out_dir, _safe(name))
+            images += paths
+            lines += more
+            continue
         paths = _scene_figures(name, ds, whole[name], out_dir)
         images += paths
         lines += _scene_section(name, ds, scores[name], paths, whole[name])
