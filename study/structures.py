@@ -31,7 +31,7 @@ from scipy.linalg import eigh
 
 from study import fields
 from study.errors import StudyError, field_error
-from study.fields import show, within
+from study.fields import show
 from study.limits import entry_kind
 from tasks.model import scene_modes
 from tasks.multicontact import MultiScene
@@ -77,8 +77,11 @@ def contact_specs(raw: object) -> tuple | list[tuple]:
     if isinstance(raw, list) and raw and all(isinstance(c, Mapping | tuple) for c in raw):
         out = []
         for i, c in enumerate(raw):
-            with within(f"contact[{i}]"):
+            try:
                 out.append(contact_spec(c))
+            except StudyError as exc:  # contact.ground -> contact[1].ground
+                field = f"contact[{i}]" + exc.field.removeprefix("contact")
+                raise StudyError(field, exc.message) from None
         return out
     return contact_spec(raw)
 
