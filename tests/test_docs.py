@@ -212,6 +212,25 @@ beta = {start = 0.0, stop = 1.2, num = 3}
 mass = [[1.0, 0.0], [0.0, 2.0]]
 stiffness = [[2.0, -1.0], [-1.0, 1.0]]
 load = [1.0, 0.0]
+
+[[scene]]
+name = "contacts"
+contact = "ground"
+dof = 2
+contact_mass = [1, 2]
+beta_ratio = [1.0, 0.5]
+r = {start = 0.5, stop = 1.5, num = 3}
+beta = {start = 0.0, stop = 1.2, num = 3}
+
+[[scene]]
+name = "contacts_points"
+contact = [{ground = 0}, {between = [0, 1]}]
+beta_ratio = [1.0, 2.0]
+points = [[0.4, 0.1], [0.9, 0.05]]
+[scene.matrices]
+mass = [[1.0, 0.0], [0.0, 2.0]]
+stiffness = [[2.0, -1.0], [-1.0, 1.0]]
+load = [1.0, 0.0]
 """
 STRUCTURE_TABLE = {
     name: row
@@ -305,6 +324,32 @@ def test_every_written_attribute_is_documented(written):
         missing = set(written[scene].to_dataset().attrs) - documented
         assert not missing, (scene, missing)
     assert not set(written.attrs) - documented
+
+
+@pytest.mark.parametrize(("scene", "column"), [("contacts", 2), ("contacts_points", 3)])
+def test_contact_tables_match_the_code_and_a_written_file(written, scene, column):
+    """Scenes with several contacts (results.md): variables, dims, coordinates, attributes."""
+    from study.contacts import MULTI_DTYPES
+
+    rows = {
+        n: row for row in md_table(RESULTS, "| contact variable | dtype |") for n in names(row[0])
+    }
+    ds = written[scene].to_dataset()
+    assert set(ds.data_vars) == {n for n in rows if "with a rest start" not in rows[n][column]}
+    assert set(MULTI_DTYPES) == {n for n in rows if "dof" not in rows[n][2]}
+    for name in ds.data_vars:
+        assert str(ds[name].dtype) == rows[name][1], name
+        assert ds[name].dims == dims_of(rows[name][column]), name
+    coords = {
+        n: row for row in md_table(RESULTS, "| contact coordinate | dtype |") for n in names(row[0])
+    }
+    plain = {"r", "beta", "point"}
+    assert set(ds.coords) - plain == set(coords)
+    for name, row in coords.items():
+        assert ds[name].dims == dims_of(row[2]), name
+    section = RESULTS[RESULTS.index("## Attributes") : RESULTS.index("## Figures")]
+    assert not set(ds.attrs) - set(re.findall(r"`([A-Za-z_0-9]+)`", section))
+    assert "n_contacts" in ds.attrs and "contact_mass" not in ds.attrs
 
 
 def test_regime_stays_int8_codes_in_a_written_file(written):
