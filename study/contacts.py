@@ -11,7 +11,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from study.errors import StudyError
+from study import fields
+from study.axes import Axis
+from study.errors import StudyError, field_error
 from tasks import regimes
 from tasks.multicontact import MAX_CONTACTS, MultiScene
 from tasks.result import FIELDS, field_attrs
@@ -63,6 +65,40 @@ def check_scene(scene: MultiScene, field: str) -> MultiScene:
     if scene.n_contacts > MAX_CONTACTS:
         raise StudyError(field, f"at most {MAX_CONTACTS} contacts, got {scene.n_contacts}")
     return scene
+
+
+def no_ratio(beta_ratio: object) -> None:
+    """A scene with one contact takes no ``beta_ratio`` (one line naming it)."""
+    if beta_ratio is not None:
+        raise StudyError("beta_ratio", "applies to scenes with several contacts (a list contact)")
+
+
+def chain_scene(
+    contact: object, dof: int, contact_mass: object, ratios: dict, beta_ratio: object
+) -> tuple[str | list[str], list[int], MultiScene]:
+    """The chain of ``dof`` masses with a contact on each of ``contact_mass`` (a list),
+    ``contact`` one kind or one per contact, fixed ``ratios`` (gamma, kappa): the
+    checked kinds, masses and :meth:`MultiScene.chain`, or a StudyError naming the field."""
+    masses = list(contact_mass) if fields.is_list(contact_mass) else [contact_mass]
+    if len(masses) > MAX_CONTACTS:
+        raise StudyError("contact_mass", f"at most {MAX_CONTACTS} contacts, got {len(masses)}")
+    masses = [fields.integer(j, f"contact_mass[{i}]", minimum=1) for i, j in enumerate(masses)]
+    if fields.is_list(contact):
+        kinds: str | list[str] = [fields.string(k, f"contact[{i}]") for i, k in enumerate(contact)]
+        if len(kinds) != len(masses):
+            raise StudyError(
+                "contact", f"one kind per contact_mass ({len(masses)}), got {len(kinds)}"
+            )
+    else:
+        kinds = fields.string(contact, "contact")
+    for k, value in ratios.items():
+        if isinstance(value, Axis):
+            raise StudyError(k, "a sweep is not available with several contacts yet")
+    try:
+        scene = MultiScene.chain(kinds, dof, masses, beta_ratio=beta_ratio, **ratios)
+    except ValueError as exc:
+        raise field_error("", exc) from None
+    return kinds, masses, scene
 
 
 def variables(starts: list[str]) -> dict[str, str]:

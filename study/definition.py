@@ -67,7 +67,6 @@ from study.limits import (
     entry_kind,
 )
 from tasks.fidelity import PRESETS, Settings, resolve
-from tasks.multicontact import MAX_CONTACTS, MultiScene
 from tasks.scene import Scene
 
 __all__ = ["ADAPTIVE_HINTS", "MODES", "SPACINGS", "Axis", "Points", "SceneSpec", "Study"]
@@ -265,18 +264,13 @@ class SceneSpec:
         if self.matrices is not None or self.beam is not None:
             self._check_structure()
             dof = self.dof
+        elif self.damping is not None:
+            raise StudyError("damping", "applies to scenes of matrices or beams only")
         elif fields.is_list(self.contact_mass) or fields.is_list(self.contact):
-            if self.damping is not None:
-                raise StudyError("damping", "applies to scenes of matrices or beams only")
             self._check_chain_contacts()
             dof = self.dof
         else:
-            if self.damping is not None:
-                raise StudyError("damping", "applies to scenes of matrices or beams only")
-            if self.beta_ratio is not None:
-                raise StudyError(
-                    "beta_ratio", "applies to scenes with several contacts (a list contact_mass)"
-                )
+            contacts.no_ratio(self.beta_ratio)
             put("contact", fields.string(self.contact, "contact"))
             dof = fields.integer(self.dof, "dof", minimum=1)
             put("dof", dof)
@@ -322,35 +316,13 @@ class SceneSpec:
     def _check_chain_contacts(self) -> None:
         """A chain with several contacts (a list ``contact_mass``); sets ``structure``."""
         dof = fields.integer(self.dof, "dof", minimum=1)
-        raw = self.contact_mass
-        masses = list(raw) if fields.is_list(raw) else [raw]
-        if len(masses) > MAX_CONTACTS:
-            raise StudyError("contact_mass", f"at most {MAX_CONTACTS} contacts, got {len(masses)}")
-        masses = [fields.integer(j, f"contact_mass[{i}]", minimum=1) for i, j in enumerate(masses)]
-        kinds = self.contact
-        if fields.is_list(kinds):
-            kinds = [fields.string(k, f"contact[{i}]") for i, k in enumerate(kinds)]
-            if len(kinds) != len(masses):
-                raise StudyError(
-                    "contact", f"one kind per contact_mass ({len(masses)}), got {len(kinds)}"
-                )
-        else:
-            kinds = fields.string(kinds, "contact")
-        ratios = {}
-        for k in ("gamma", "kappa"):
-            ratios[k] = _ratio(getattr(self, k), k, dof)
-            if isinstance(ratios[k], Axis):
-                raise StudyError(k, "a sweep is not available with several contacts yet")
-        try:
-            scene = MultiScene.chain(kinds, dof, masses, beta_ratio=self.beta_ratio, **ratios)
-        except ValueError as exc:
-            raise field_error("", exc) from None
-        for key, value in (
-            ("dof", dof),
-            ("contact", kinds),
-            ("contact_mass", masses),
-            *ratios.items(),
-        ):
+        ratios = {k: _ratio(getattr(self, k), k, dof) for k in ("gamma", "kappa")}
+        kinds, masses, scene = contacts.chain_scene(
+            self.contact, dof, self.contact_mass, ratios, self.beta_ratio
+        )
+        for key, value in (("dof", dof), ("contact", kinds), ("contact_mass", masses)):
+            object.__setattr__(self, key, value)
+        for key, value in ratios.items():
             object.__setattr__(self, key, value)
         object.__setattr__(self, "beta_ratio", list(scene.beta_ratio))
         object.__setattr__(self, "structure", scene)
@@ -372,8 +344,8 @@ class SceneSpec:
                 self.matrices, contact, self.damping, Path.cwd(), self.beta_ratio
             )
             object.__setattr__(self, "contact", contact)
-        if self.beta_ratio is not None and not contacts.is_multi(scene):
-            raise StudyError("beta_ratio", "applies to scenes with several contacts")
+        if not contacts.is_multi(scene):  # a beam: one contact
+            contacts.no_ratio(self.beta_ratio)
         object.__setattr__(self, "structure", structures.check_simulable(scene))
         object.__setattr__(self, "dof", scene.dof)
         if contacts.is_multi(scene):
@@ -656,7 +628,14 @@ class Study:
             raise StudyError("text", f"must be a string, got {_show(self.text)}")
         if self.source is not None and not isinstance(self.source, str):
             raise StudyError("source", f"must be a string or None, got {_show(self.source)}")
-        self.settings  # noqa: B018  (raises a StudyError naming the setting)
+        settings = self.settings  # raises a StudyError naming the setting
+        for i, s in enumerate(self.scenes):
+            if settings.n_random and contacts.is_multi(s.structure):
+                raise StudyError(
+                    "settings.n_random",
+                    f"random starts are not available for several contacts yet (scene[{i}])",
+                    self.source,
+                )
         total = self.n_points
         if total > self.max_points:
             raise StudyError(

@@ -30,6 +30,7 @@ import numpy as np
 from scipy.linalg import eigh
 
 from study import fields
+from study.contacts import no_ratio
 from study.errors import StudyError, field_error
 from study.fields import show
 from study.limits import entry_kind
@@ -176,8 +177,8 @@ def matrices_scene(
             "contact", "a scene of matrices needs contact = {ground = j} or {between = [i, j]}"
         )
     spec_contact = contact_specs(contact)
-    if beta_ratio is not None and not isinstance(spec_contact, list):
-        raise StudyError("beta_ratio", "applies to scenes with several contacts (a list contact)")
+    if not isinstance(spec_contact, list):
+        no_ratio(beta_ratio)
     spec_damping = damping_spec(damping)
     if isinstance(matrices, str | os.PathLike):
         path = Path(matrices)
