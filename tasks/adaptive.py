@@ -233,6 +233,10 @@ class Refinement:
                 idx = np.unique(np.ravel_multi_index(tuple(np.array(new).T), self.shape))
                 return idx.astype(np.int64)
 
+    def level_sizes(self) -> list[int]:
+        """Points simulated per wave (the verification sample excluded)."""
+        return list(self.levels)
+
     def _children(self, box: tuple[int, int, int, int]) -> list[tuple[int, int, int, int]]:
         """The halves of a cell along :meth:`_split_axes`."""
         i0, i1, j0, j1 = box
@@ -465,8 +469,10 @@ class StreamRefinement(Refinement):
         self._requested[first] = True
         self._waiting: dict[int, list[Box]] = {}  # point -> cells waiting for it
         self._missing: dict[Box, int] = {}  # cell -> corners not yet simulated
+        self._depth: dict[Box, int] = {}  # cell -> halvings from its coarse cell
+        self._level = np.full(self.n_points, np.iinfo(np.int64).max, dtype=np.int64)
         cells, self._active = self._active, []
-        self._evaluate([c for c in cells if self._wait(c)])
+        self._evaluate([c for c in cells if self._wait(c, 0)])
 
     def wave(self) -> np.ndarray:  # pragma: no cover - guard
         raise TypeError("StreamRefinement: use take() and accept(), not wave()")
@@ -502,10 +508,21 @@ class StreamRefinement(Refinement):
                     queue.append(box)
         self._evaluate(queue)
 
-    def _wait(self, box: Box) -> bool:
+    def level_sizes(self) -> list[int]:
+        """Points of the refinement per level: a point's level is the smallest depth (in
+        halvings from the coarse lattice) of a cell it is a corner of. Unlike the batches,
+        this does not depend on the arrival order (the cells are those of the waves)."""
+        flat = self._level[self._level < np.iinfo(np.int64).max]
+        return np.bincount(flat).tolist() if flat.size else []
+
+    def _wait(self, box: Box, depth: int) -> bool:
         """Register a cell for its corners not simulated yet (requesting them); True if none."""
+        self._depth[box] = depth
         i0, i1, j0, j1 = box
         corners = {(i0, j0), (i0, j1), (i1, j0), (i1, j1)}
+        for p in corners:
+            f = int(np.ravel_multi_index(p, self.shape))
+            self._level[f] = min(self._level[f], depth)
         missing = [p for p in corners if not self.simulated[p]]
         if not missing:
             return True
@@ -528,7 +545,8 @@ class StreamRefinement(Refinement):
             i0, i1, j0, j1 = box
             if i1 - i0 <= 1 and j1 - j0 <= 1:
                 continue  # every point of the cell is a simulated corner
-            queue.extend(c for c in self._children(box) if self._wait(c))
+            depth = self._depth[box] + 1
+            queue.extend(c for c in self._children(box) if self._wait(c, depth))
 
 
 @dataclass
@@ -536,7 +554,7 @@ class AdaptiveResult:
     """An adaptive map: ``fields`` as a dense grid would give them, plus bookkeeping."""
 
     fields: dict[str, np.ndarray]  #: FIELDS + ``simulated`` + ``verification``, shape (n_r, n_beta)
-    levels: list[int]  #: points simulated per refinement wave
+    levels: list[int]  #: points per refinement level (:meth:`Refinement.level_sizes`)
     verification: VerificationSummary | None
 
     @property
@@ -588,7 +606,7 @@ def refine(
         else:
             res = {k: np.zeros(0, dtype=dt) for k, (dt, _) in FIELDS.items()}
         summary = ref.accept_verification(sample, res)
-    return AdaptiveResult(ref.result(), ref.levels, summary)
+    return AdaptiveResult(ref.result(), ref.level_sizes(), summary)
 
 
 def adaptive_map(

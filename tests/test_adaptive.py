@@ -10,7 +10,7 @@
   orders, several in flight: the same simulated points and the same fields as the
   wave refinement, on synthetic panels and a real scene;
 * a study with ``mode = "adaptive"`` on a real LocalCluster (processes,
-  127.0.0.1), interrupted after a few waves and resumed, opened with xarray
+  127.0.0.1), interrupted after a few point lists and resumed, opened with xarray
   and compared with the in-process refinement and with ``tasks.classify``.
 """
 
@@ -264,20 +264,21 @@ def test_adaptive_study_on_local_cluster_resumes_after_interruption(tmp_path, mo
     study = Study.from_toml(_write(tmp_path / "adaptive.toml", ADAPTIVE))
     out = tmp_path / "adaptive.nc"
     with local_cluster_client(2) as client:
-        real_advance = AdaptivePlan._advance
-        calls = [0]
+        real_accept = AdaptivePlan.accept
+        kept = []  # points of the first plane's point lists saved before the interruption
 
-        def interrupted_advance(self, pl, *args, **kwargs):
-            calls[0] += pl.sweep == (0,)
-            if calls[0] == 4:  # Ctrl-C when the third wave of the first plane is complete
-                raise KeyboardInterrupt
-            return real_advance(self, pl, *args, **kwargs)
+        def interrupted_accept(self, unit, *args, **kwargs):
+            real_accept(self, unit, *args, **kwargs)
+            if unit.sweep == (0,):
+                kept.append(unit.n_points)
+                if len(kept) == 4:  # Ctrl-C after the fourth point list of the first plane
+                    raise KeyboardInterrupt
 
-        monkeypatch.setattr(AdaptivePlan, "_advance", interrupted_advance)
+        monkeypatch.setattr(AdaptivePlan, "accept", interrupted_accept)
         with pytest.raises(StudyInterrupted):
             run_study(study, out, client=client, progress=False, stream=io.StringIO())
         assert not out.exists() and (tmp_path / "adaptive.nc.work").is_dir()
-        monkeypatch.setattr(AdaptivePlan, "_advance", real_advance)
+        monkeypatch.setattr(AdaptivePlan, "accept", real_accept)
         log = io.StringIO()
         run_study(study, out, client=client, progress=False, stream=log)
     assert not (tmp_path / "adaptive.nc.work").exists()
@@ -285,8 +286,8 @@ def test_adaptive_study_on_local_cluster_resumes_after_interruption(tmp_path, mo
         line for line in log.getvalue().splitlines() if "sweep[0]:" in line and "reused" in line
     ]
     assert len(first) == 1 and "verification: 200 of" in first[0]
-    reused = int(first[0].split(" reused")[0].split()[-1])
-    assert reused >= 3  # the point lists of waves 1-3 came from the work folder
+    reused = int(first[0].split(" saved points reused")[0].split()[-1].replace(",", ""))
+    assert reused >= sum(kept) > 0  # the points of those lists came from the work folder
 
     tree = xr.open_dataset(out)
     assert tree["regime"].dims == ("gamma", "beta", "r")
@@ -379,8 +380,11 @@ def test_no_barriers_equals_waves_in_any_order(label_fn, coarse_step):
         ref_w = waves((N_R, N_B), batch, coarse_step, h)
         want = ref_w.result()
         assert len(ref_w.levels) > 3
+        levels = shuffled_stream((N_R, N_B), batch, 99, coarse_step, h).level_sizes()
+        assert sum(levels) == want["simulated"].sum() and len(levels) > 3
         for seed in range(3):
             ref_s = shuffled_stream((N_R, N_B), batch, seed, coarse_step, h)
+            assert ref_s.level_sizes() == levels  # stored per plane: independent of order
             got = ref_s.result()
             np.testing.assert_array_equal(got["simulated"], want["simulated"])
             for name in ("regime", "converged", "slip_amplitude"):
