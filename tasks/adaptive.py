@@ -33,10 +33,13 @@ Guarantees (in grid steps of the requested resolution):
   (:meth:`Refinement.verification`) estimates the error of the inferred labels.
 
 The logic is pure numerics: the classification of a batch of points is injected
-(:func:`refine`), or the caller drives the waves itself (:class:`Refinement`:
-:meth:`~Refinement.wave` gives the points of the next level, the caller
-simulates them, e.g. as a wave of Dask tasks, and hands the results to
-:meth:`~Refinement.accept`). No Dask, no files.
+(:func:`refine`), or the caller drives the refinement itself, without barriers
+(:class:`StreamRefinement`: :meth:`~StreamRefinement.take` gives points ready to
+simulate, :meth:`~StreamRefinement.accept` takes results of any handed-out points
+in any order, e.g. as Dask tasks finish) or wave by wave (:class:`Refinement`:
+:meth:`~Refinement.wave` gives the points of the next level, all of whose results
+go to :meth:`~Refinement.accept` before the next wave). Both end at the same
+cells, simulated points and labels. No Dask, no files.
 """
 
 from __future__ import annotations
