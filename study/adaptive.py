@@ -64,6 +64,8 @@ PLANES_AT_ONCE = 2
 #: A point list shorter than the chunk target is handed out only while fewer than this
 #: many point lists of its plane are in flight (else the ready points wait to fill one).
 PARTIAL_BELOW = 4
+#: Fewest points of a list cut smaller than the chunk target (its overhead stays small).
+MIN_LIST = 64
 #: Fraction of the points an adaptive scene is expected to simulate (planning only).
 ADAPTIVE_SIMULATED_FRACTION = 0.05
 
@@ -233,9 +235,9 @@ class AdaptivePlan(ScenePlan):
 
     def _next_of(self, pl: _Plane, work):
         """The next point list of one plane, WAIT, or None when the plane is saved."""
-        size = max(1, self.block[0])
         while pl.sweep in self._active:
             self._replay(pl)
+            size = self._list_size(pl)
             few = len(pl.outstanding) < PARTIAL_BELOW or self.barriers
             if pl.todo.size >= size or (pl.todo.size and few):
                 idx, pl.todo = pl.todo[:size], pl.todo[size:]
@@ -247,6 +249,15 @@ class AdaptivePlan(ScenePlan):
             else:
                 self._finish(pl, pl.ref.accept_verification(pl.sample, pl.out), work)
         return None
+
+    def _list_size(self, pl: _Plane) -> int:
+        """Points per list: the chunk target, or fewer when few points are ready, so that
+        they still fill :data:`PARTIAL_BELOW` lists (workers busy, short dependency
+        chains) of at least :data:`MIN_LIST` points (with barriers: the chunk target)."""
+        target = max(1, self.block[0])
+        if self.barriers:
+            return target
+        return min(target, max(MIN_LIST, -(-pl.todo.size // PARTIAL_BELOW)))
 
     def _replay(self, pl: _Plane) -> None:
         """Move the refinement's ready points to ``todo``, answering at once those a saved
