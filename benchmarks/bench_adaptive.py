@@ -239,7 +239,7 @@ def main(argv: list[str] | None = None) -> int:
         "one process"
     )
     head = (
-        "| panel | simulated | % simulated | waves | adaptive s | dense s | speed-up "
+        "| panel | simulated | % simulated | levels | adaptive s | dense s | speed-up "
         "| labels equal to dense | differing | of which determined in the dense grid "
         "| dense undetermined | verification (agree / sampled) |"
     )
