@@ -1,19 +1,23 @@
-"""``mode = "adaptive"``: a grid scene simulated by refinement waves (:class:`AdaptivePlan`).
+"""``mode = "adaptive"``: a grid scene simulated by refinement without barriers.
 
-The refinement logic is :class:`tasks.adaptive.Refinement` (pure numerics);
-this plan hands out each of its levels as units of work (:mod:`study.chunks`
-describes the interface every plan shares): the points of a wave are cut into
-point lists of about ``task_seconds`` of work, each keyed by a hash of (scene
-physics, settings, the points' r and beta values) and saved in the work folder
-as it arrives, like the chunks of a grid. The refinement is deterministic, so a
-rerun after an interruption replays the waves, finds every saved point list on
-disk and computes only the missing ones. When a plane (one combination of the
-swept ratios) is complete, its assembled fields are saved in the work folder
-too (one plane in client memory at a time) and the netCDF writer
-(:mod:`study.netcdf`) copies them into the result. Saved planes and point lists
-are verified before any computing (:meth:`AdaptivePlan.prepare`; the exact
-length of a point list when its wave asks for it): a damaged one is discarded,
-named and computed again in the same run.
+The refinement logic is :class:`tasks.adaptive.StreamRefinement` (pure
+numerics): a cell is split as soon as its corners are known. This plan hands
+out its ready points as units of work (:mod:`study.chunks` describes the
+interface every plan shares): point lists of about ``task_seconds`` of work
+(the chunk target; a smaller list only when few of the plane's lists are in
+flight, :data:`PARTIAL_BELOW`, so workers never wait for a full one), each
+keyed by the plane, its length and a hash of its points' r and beta values, and
+saved in the work folder with the points' indices as it arrives. The result
+does not depend on the order in which point lists arrive, so a rerun after an
+interruption loads every saved point list of a plane, answers the refinement's
+requests from them and computes only the missing points. When a plane (one
+combination of the swept ratios) is complete, its assembled fields are saved in
+the work folder too (:data:`PLANES_AT_ONCE` planes in client memory at a time)
+and the netCDF writer (:mod:`study.netcdf`) copies them into the result. Saved
+planes and point lists (their exact length, from the key) are verified before
+any computing (:meth:`AdaptivePlan.prepare`), and a point list's indices
+against its key when its plane starts: a damaged one is discarded, named and
+computed again in the same run.
 
 The result has the layout of a grid scene (dims ``(gamma, kappa, beta, r)``,
 every variable of :data:`tasks.result.FIELDS`) plus ``simulated`` and
@@ -37,11 +41,12 @@ import numpy as np
 from study.cost import chunk_target
 from study.definition import SceneSpec, Study
 from study.plans import CHUNK_FORMAT, SECONDS, WAIT, ScenePlan
+from study.store import discard
 from study.verify import Expected
 from tasks.adaptive import (
     ADAPTIVE_FIELDS,
     DEFAULT_VERIFY_MIN,
-    Refinement,
+    StreamRefinement,
     VerificationSummary,
     disagreement_upper_bound,
 )
@@ -49,30 +54,36 @@ from tasks.result import FIELDS, MASS_FIELDS, field_shape
 
 #: Seed of the verification sample (fixed: a rerun draws the same sample).
 VERIFY_SEED = 0
-#: Seconds between two progress lines of the waves of one plane.
+#: Seconds between two progress lines of one plane.
 PRINT_EVERY = 10.0
 #: Plane statistics saved with each plane (0-d or 1-d arrays in the plane file).
 STAT_NAMES = ("levels", "n_points", "verify_inferred", "verify_sampled", "verify_agree")
-#: Planes refined at the same time (in memory at once): the waves of one fill the
-#: workers while another waits for the last points of its wave.
+#: Planes refined at the same time (in memory at once): one plane's points fill the
+#: workers while another has few ready.
 PLANES_AT_ONCE = 2
+#: A point list shorter than the chunk target is handed out only while fewer than this
+#: many point lists of its plane are in flight (else the ready points wait to fill one).
+PARTIAL_BELOW = 4
+#: Fewest points of a list cut smaller than the chunk target (its overhead stays small).
+MIN_LIST = 64
 #: Fraction of the points an adaptive scene is expected to simulate (planning only).
 ADAPTIVE_SIMULATED_FRACTION = 0.05
 
 
 @dataclass(frozen=True)
 class PointList:
-    """One unit of work of an adaptive scene: points ``sl`` of the current wave."""
+    """One unit of work of an adaptive scene: the points ``idx`` (flat, sorted) of a plane."""
 
     scene: str
     key: str
-    sl: slice
+    idx: np.ndarray = field(repr=False, compare=False)
     task: dict = field(repr=False, compare=False)
     sweep: tuple[int, ...] = ()  # the plane it belongs to
+    phase: str = "refine"  # or "verify": a point list of the verification sample
 
     @property
     def n_points(self) -> int:
-        return self.sl.stop - self.sl.start
+        return int(self.idx.size)
 
 
 @dataclass
@@ -80,16 +91,19 @@ class _Plane:
     """The refinement of one (r, beta) plane while it runs."""
 
     sweep: tuple[int, ...]
-    ref: Refinement
+    ref: StreamRefinement
     ident: dict
+    tag: str  # the plane's part of its point lists' keys
     t0: float
+    saved: dict = field(default_factory=dict)  # results of saved point lists, by field
+    row: np.ndarray | None = None  # flat index -> row of ``saved`` (-1: not saved)
     phase: str = "refine"  # then "verify"
-    idx: np.ndarray | None = None  # points of the wave (or sample) being simulated
-    out: dict = field(default_factory=dict)  # their results
-    pending: list = field(default_factory=list)  # point lists not handed out yet
+    todo: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))  # ready
+    sample: np.ndarray | None = None  # the verification sample (sorted)
+    out: dict = field(default_factory=dict)  # its results
     outstanding: set = field(default_factory=set)  # keys handed out, not arrived
-    waves: int = 0
-    reused: int = 0
+    batches: int = 0
+    reused: int = 0  # points answered from saved point lists
     computed: int = 0
     shown: float = field(default_factory=time.monotonic)
 
@@ -103,6 +117,9 @@ class AdaptivePlan(ScenePlan):
     unit_noun = "adaptive planes"
     stream: TextIO | None = None  # where the planes' lines go (set by the run)
     verbose: bool = True
+    #: True: the old wave-by-wave barriers (new points only once every point list of
+    #: the plane has arrived), kept for ``benchmarks/bench_adaptive.py``; same result.
+    barriers: bool = False
 
     @classmethod
     def build(cls, spec: SceneSpec, study: Study) -> AdaptivePlan:
@@ -115,7 +132,7 @@ class AdaptivePlan(ScenePlan):
         return super().variables() | {k: dt for k, (dt, _) in ADAPTIVE_FIELDS.items()}
 
     @property
-    def n_chunks(self) -> int:  # an estimate: the waves decide
+    def n_chunks(self) -> int:  # an estimate: the refinement decides
         return max(1, -(-int(self.work_per_point * self.spec.n_points) // self.block[0]))
 
     # ------------------------------------------------------------ keys and layouts
@@ -156,15 +173,29 @@ class AdaptivePlan(ScenePlan):
         out = {k: (dt, field_shape(k, shape, self.spec.dof)) for k, dt in self.variables().items()}
         return out | {"levels": ("int64", None)} | {k: ("int64", ()) for k in STAT_NAMES[1:]}
 
-    def expected(self, unit: PointList | None) -> Expected:
-        """What a point list holds (any length when ``unit`` is None)."""
-        n = None if unit is None else unit.n_points
+    def expected(self, n: int | None) -> Expected:
+        """What a point list of ``n`` points holds (any length when ``n`` is None)."""
         dof = self.spec.dof
         out = {
             k: (dt, None if n is None else field_shape(k, (n,), dof))
             for k, (dt, _) in FIELDS.items()
         }
-        return out | SECONDS
+        return out | SECONDS | {"index": ("int64", None if n is None else (n,))}
+
+    def _list_key(self, pl: _Plane, idx: np.ndarray) -> str:
+        """Key of a point list: the plane, the length, a hash of the points' r and beta."""
+        r, beta = self._axes["r"], self._axes["beta"]
+        i_r, i_b = np.unravel_index(idx, (r.size, beta.size))
+        h = hashlib.sha256(pl.tag.encode())
+        h.update(np.ascontiguousarray(r[i_r]).tobytes())
+        h.update(np.ascontiguousarray(beta[i_b]).tobytes())
+        return f"{pl.tag}-{idx.size}-{h.hexdigest()[:16]}"
+
+    @staticmethod
+    def _list_length(key: str) -> int | None:
+        """The length a point list's key names (None: not a key of this format)."""
+        parts = key.rsplit("-", 2)
+        return int(parts[1]) if len(parts) == 3 and parts[1].isdigit() else None
 
     # ------------------------------------------------------------ driving (study.drive)
     def prepare(self, work) -> tuple[int, int, int]:
@@ -179,16 +210,16 @@ class AdaptivePlan(ScenePlan):
             else:
                 self._missing.append(sweep)
         for key in work.keys(self.spec.name):
-            if key not in keys:  # a point list: its fields and dtypes now, its length when used
-                work.reuse(self.spec.name, key, self.expected(None))
+            if key not in keys:  # a point list: its fields, dtypes and length now
+                work.reuse(self.spec.name, key, self.expected(self._list_length(key)))
         self._active: dict[tuple[int, ...], _Plane] = {}
         self.finished_points = reused * int(np.prod(self.spec.plane_shape))
         return len(keys), reused, self.finished_points
 
     def next_unit(self, work):
-        """A point list of any plane in refinement: while one plane waits for the last
-        points of its wave, the next plane's waves run (at most :data:`PLANES_AT_ONCE`
-        planes in memory)."""
+        """A point list of any plane in refinement: while one plane waits for points in
+        flight, the next plane's refinement runs (at most :data:`PLANES_AT_ONCE` planes
+        in memory)."""
         while True:
             waiting = False
             for pl in list(self._active.values()):
@@ -198,44 +229,142 @@ class AdaptivePlan(ScenePlan):
                 waiting |= unit is WAIT
             if self._missing and len(self._active) < PLANES_AT_ONCE:
                 sweep = self._missing.pop(0)
-                self._active[sweep] = self._start(sweep)
+                self._active[sweep] = self._start(sweep, work)
                 continue
             return WAIT if waiting else None
 
     def _next_of(self, pl: _Plane, work):
         """The next point list of one plane, WAIT, or None when the plane is saved."""
         while pl.sweep in self._active:
-            if pl.pending:
-                unit = pl.pending.pop()
-                if work.reuse(unit.scene, unit.key, self.expected(unit)):
-                    self._take(pl, unit, work.load(unit.scene, unit.key))
-                    pl.reused += 1
-                    continue
-                pl.outstanding.add(unit.key)
-                return unit
-            if pl.outstanding:
+            self._replay(pl)
+            size = self._list_size(pl)
+            few = len(pl.outstanding) < PARTIAL_BELOW or self.barriers
+            if pl.todo.size >= size or (pl.todo.size and few):
+                idx, pl.todo = pl.todo[:size], pl.todo[size:]
+                return self._unit(pl, np.sort(idx))
+            if pl.todo.size or pl.outstanding:
                 return WAIT
-            self._advance(pl, work)
+            if pl.phase == "refine":
+                self._verify(pl)
+            else:
+                self._finish(pl, pl.ref.accept_verification(pl.sample, pl.out), work)
         return None
+
+    def _list_size(self, pl: _Plane) -> int:
+        """Points per list: the chunk target, or fewer when few points are ready, so that
+        they still fill :data:`PARTIAL_BELOW` lists (workers busy, short dependency
+        chains) of at least :data:`MIN_LIST` points (with barriers: the chunk target)."""
+        target = max(1, self.block[0])
+        if self.barriers:
+            return target
+        return min(target, max(MIN_LIST, -(-pl.todo.size // PARTIAL_BELOW)))
+
+    def _replay(self, pl: _Plane) -> None:
+        """Move the refinement's ready points to ``todo``, answering at once those a saved
+        point list holds (their answers may make more points ready)."""
+        while True:
+            wave_open = self.barriers and (pl.outstanding or pl.todo.size)
+            if pl.phase == "refine" and not wave_open:
+                pl.todo = np.concatenate([pl.todo, pl.ref.take()])
+            if pl.row is None or not pl.todo.size:
+                return
+            rows = pl.row[pl.todo]
+            known = rows >= 0
+            if not known.any():
+                return
+            idx, pl.todo = pl.todo[known], pl.todo[~known]
+            arrays = {k: v[rows[known]] for k, v in pl.saved.items()}
+            if pl.phase == "refine":
+                pl.ref.accept(idx, arrays)
+            else:
+                self._put(pl, idx, arrays)
+            pl.reused += idx.size
+
+    def _unit(self, pl: _Plane, idx: np.ndarray) -> PointList:
+        r, beta = self._axes["r"], self._axes["beta"]
+        i_r, i_b = np.unravel_index(idx, (r.size, beta.size))
+        task = {
+            "kind": "adaptive",
+            "scene": pl.ident["physics"],
+            "settings": self.settings,
+            "r": r[i_r],
+            "beta": beta[i_b],
+        }
+        key = self._list_key(pl, idx)
+        pl.outstanding.add(key)
+        return PointList(self.spec.name, key, idx, task, pl.sweep, pl.phase)
 
     def task(self, unit: PointList, axes=None) -> dict:
         return unit.task
 
     def accept(self, unit: PointList, arrays: dict[str, np.ndarray], work) -> None:
+        """Keep a point list's indices with its results (for a resumed run), then
+        hand the results to the refinement or the verification sample."""
+        work.save(unit.scene, unit.key, dict(arrays) | {"index": unit.idx})
         pl = self._active[unit.sweep]
         pl.outstanding.discard(unit.key)
         pl.computed += 1
-        self._take(pl, unit, arrays)
+        if unit.phase == "verify":
+            self._put(pl, unit.idx, arrays)
+            return
+        pl.ref.accept(unit.idx, arrays)
+        pl.batches += 1
+        if self.verbose and time.monotonic() - pl.shown > PRINT_EVERY:
+            pl.shown = time.monotonic()
+            self._say(
+                f"{self._where(pl)}: {pl.batches} point lists, "
+                f"{int(pl.ref.simulated.sum()):,} of {pl.ref.n_points:,} points simulated so far"
+            )
 
     @staticmethod
-    def _take(pl: _Plane, unit: PointList, arrays: dict[str, np.ndarray]) -> None:
+    def _put(pl: _Plane, idx: np.ndarray, arrays: dict[str, np.ndarray]) -> None:
+        """Results of points of the verification sample."""
+        at = np.searchsorted(pl.sample, idx)
         for k in pl.out:
-            pl.out[k][unit.sl] = arrays[k]
+            pl.out[k][at] = arrays[k]
 
-    def _start(self, sweep: tuple[int, ...]) -> _Plane:
+    def _verify(self, pl: _Plane) -> None:
+        """Refinement is done: the verification sample's points become the ones to do."""
+        pl.phase = "verify"
+        sample = pl.ref.verification(self.spec.verify_fraction, DEFAULT_VERIFY_MIN, VERIFY_SEED)
+        pl.sample, pl.out = sample, _empty(self.spec.dof, sample.size)
+        pl.todo = sample.copy()
+
+    def _start(self, sweep: tuple[int, ...], work) -> _Plane:
         axes, spec = self._axes, self.spec
-        ref = Refinement(spec.plane_shape, spec.coarse_step, self._hint(sweep, axes), dof=spec.dof)
-        return _Plane(sweep, ref, self._ident(sweep, axes), time.perf_counter())
+        hint = self._hint(sweep, axes)
+        ref = StreamRefinement(spec.plane_shape, spec.coarse_step, hint, dof=spec.dof)
+        tag = f"{spec.name}-pts-{self.plane_key(sweep, axes).rsplit('-', 1)[1][:12]}"
+        pl = _Plane(sweep, ref, self._ident(sweep, axes), tag, time.perf_counter())
+        self._load_saved(pl, work)
+        return pl
+
+    def _load_saved(self, pl: _Plane, work) -> None:
+        """The saved point lists of a plane (verified in :meth:`prepare`), their indices
+        checked against their keys; the plane's requests are answered from them."""
+        idx, parts = [], []
+        for key in work.keys(self.spec.name):
+            if not key.startswith(pl.tag + "-"):
+                continue
+            arrays = work.load(self.spec.name, key, self.expected(self._list_length(key)))
+            index = np.asarray(arrays["index"], dtype=np.int64)
+            n = pl.ref.n_points
+            inside = index.size and index.min() >= 0 and index.max() < n
+            if not (inside and self._list_key(pl, index) == key):
+                path = work.chunk_path(self.spec.name, key)
+                discard(path)
+                work.report(
+                    f"study: discarded {path}: its points do not match its key; "
+                    "computing them again"
+                )
+                continue
+            idx.append(index)
+            parts.append(arrays)
+        if not idx:
+            return
+        pl.saved = {k: np.concatenate([a[k] for a in parts]) for k in FIELDS}
+        pl.row = np.full(pl.ref.n_points, -1, dtype=np.int64)
+        pl.row[np.concatenate(idx)] = np.arange(sum(i.size for i in idx))
 
     def _hint(self, sweep: tuple[int, ...], axes: dict) -> np.ndarray | None:
         if self.spec.hint == "none":
@@ -246,57 +375,6 @@ class AdaptivePlan(ScenePlan):
         scene = self.spec.scene_at(**ratios)
         return closed_form_hint(scene, axes["r"], axes["beta"], self.spec.hint)
 
-    def _advance(self, pl: _Plane, work) -> None:
-        """Every point of the current wave arrived: the next wave, the sample, or the end."""
-        ref = pl.ref
-        if pl.idx is not None:
-            if pl.phase == "verify":
-                self._finish(pl, ref.accept_verification(pl.idx, pl.out), work)
-                return
-            ref.accept(pl.idx, pl.out)
-            pl.waves += 1
-            if self.verbose and time.monotonic() - pl.shown > PRINT_EVERY:
-                pl.shown = time.monotonic()
-                self._say(
-                    f"{self._where(pl)}: wave {pl.waves}: {pl.idx.size:,} points "
-                    f"({int(ref.simulated.sum()):,} of {ref.n_points:,} simulated so far)"
-                )
-            pl.idx = None
-        idx = ref.wave()
-        if not idx.size:
-            pl.phase = "verify"
-            idx = ref.verification(self.spec.verify_fraction, DEFAULT_VERIFY_MIN, VERIFY_SEED)
-            if not idx.size:
-                self._finish(pl, ref.accept_verification(idx, _empty(self.spec.dof)), work)
-                return
-        pl.idx = idx
-        pl.out = _empty(self.spec.dof, idx.size)
-        pl.pending = self._point_lists(pl, idx)[::-1]  # popped from the end: in order
-
-    def _point_lists(self, pl: _Plane, idx: np.ndarray) -> list[PointList]:
-        """Cut the points ``idx`` of a wave into keyed point lists of about one task each."""
-        r, beta = self._axes["r"], self._axes["beta"]
-        size = max(1, self.block[0])
-        i_r, i_b = np.unravel_index(idx, (r.size, beta.size))
-        head = hashlib.sha256(json.dumps(pl.ident | {"kind": "adaptive"}, sort_keys=True).encode())
-        out = []
-        for start in range(0, idx.size, size):
-            sl = slice(start, min(start + size, idx.size))
-            rr, bb = r[i_r[sl]], beta[i_b[sl]]
-            h = head.copy()
-            h.update(np.ascontiguousarray(rr).tobytes())
-            h.update(np.ascontiguousarray(bb).tobytes())
-            key = f"{self.spec.name}-pts-{h.hexdigest()[:24]}"
-            task = {
-                "kind": "adaptive",
-                "scene": pl.ident["physics"],
-                "settings": self.settings,
-                "r": rr,
-                "beta": bb,
-            }
-            out.append(PointList(self.spec.name, key, sl, task, pl.sweep))
-        return out
-
     def _finish(self, pl: _Plane, summary: VerificationSummary, work) -> None:
         """Save the finished plane (its fields and counts) and say so in one line."""
         ref = pl.ref
@@ -305,11 +383,12 @@ class AdaptivePlan(ScenePlan):
         self._say(  # the plane's line with its verification estimate is always printed
             f"{self._where(pl)}: {n_sim:,} of {ref.n_points:,} points simulated "
             f"({100 * n_sim / ref.n_points:.2f} %, verification included) in "
-            f"{len(ref.levels)} waves, {time.perf_counter() - pl.t0:.1f} s; point lists "
-            f"{pl.computed} computed, {pl.reused} reused; {summary.line()}",
+            f"{len(ref.level_sizes())} levels, {time.perf_counter() - pl.t0:.1f} s; "
+            f"{pl.computed} point lists computed, {pl.reused:,} saved points reused; "
+            f"{summary.line()}",
             always=True,
         )
-        fields["levels"] = np.asarray(ref.levels, dtype=np.int64)
+        fields["levels"] = np.asarray(ref.level_sizes(), dtype=np.int64)
         fields["n_points"] = np.int64(ref.n_points)
         fields["verify_inferred"] = np.int64(summary.inferred)
         fields["verify_sampled"] = np.int64(summary.sampled)

@@ -33,10 +33,13 @@ Guarantees (in grid steps of the requested resolution):
   (:meth:`Refinement.verification`) estimates the error of the inferred labels.
 
 The logic is pure numerics: the classification of a batch of points is injected
-(:func:`refine`), or the caller drives the waves itself (:class:`Refinement`:
-:meth:`~Refinement.wave` gives the points of the next level, the caller
-simulates them, e.g. as a wave of Dask tasks, and hands the results to
-:meth:`~Refinement.accept`). No Dask, no files.
+(:func:`refine`), or the caller drives the refinement itself, without barriers
+(:class:`StreamRefinement`: :meth:`~StreamRefinement.take` gives points ready to
+simulate, :meth:`~StreamRefinement.accept` takes results of any handed-out points
+in any order, e.g. as Dask tasks finish) or wave by wave (:class:`Refinement`:
+:meth:`~Refinement.wave` gives the points of the next level, all of whose results
+go to :meth:`~Refinement.accept` before the next wave). Both end at the same
+cells, simulated points and labels. No Dask, no files.
 """
 
 from __future__ import annotations
@@ -58,6 +61,8 @@ DEFAULT_COARSE_STEP = 16
 #: (measured on Fig. 10a at 1000 x 500: 1 step 7.5 %, 4 steps 4.6 % of the
 #: points simulated, the same agreement with the dense grid).
 HINT_CELL = 4
+#: Largest batch of ready points :func:`refine` classifies at once without barriers.
+DEFAULT_BATCH_POINTS = 256
 #: Default verification sample: this fraction of the inferred points ...
 DEFAULT_VERIFY_FRACTION = 0.005
 #: ... but at least this many (or all the inferred points if there are fewer).
@@ -220,22 +225,30 @@ class Refinement:
                 i0, i1, j0, j1 = box
                 if i1 - i0 <= 1 and j1 - j0 <= 1:
                     continue  # every point of the cell is a simulated corner
-                split_r, split_b = self._split_axes(box)
-                im = (i0 + i1) // 2 if split_r else None
-                jm = (j0 + j1) // 2 if split_b else None
-                rs = [(i0, im), (im, i1)] if im is not None else [(i0, i1)]
-                bs = [(j0, jm), (jm, j1)] if jm is not None else [(j0, j1)]
-                for a, b in rs:
-                    for c, d in bs:
-                        children.append((a, b, c, d))
-                        for p in ((a, c), (a, d), (b, c), (b, d)):
-                            if not self.simulated[p]:
-                                new.append(p)
+                for a, b, c, d in self._children(box):
+                    children.append((a, b, c, d))
+                    for p in ((a, c), (a, d), (b, c), (b, d)):
+                        if not self.simulated[p]:
+                            new.append(p)
             self._active = children
             self._last_new = None
             if new:
                 idx = np.unique(np.ravel_multi_index(tuple(np.array(new).T), self.shape))
                 return idx.astype(np.int64)
+
+    def level_sizes(self) -> list[int]:
+        """Points simulated per wave (the verification sample excluded)."""
+        return list(self.levels)
+
+    def _children(self, box: tuple[int, int, int, int]) -> list[tuple[int, int, int, int]]:
+        """The halves of a cell along :meth:`_split_axes`."""
+        i0, i1, j0, j1 = box
+        split_r, split_b = self._split_axes(box)
+        im = (i0 + i1) // 2 if split_r else None
+        jm = (j0 + j1) // 2 if split_b else None
+        rs = [(i0, im), (im, i1)] if im is not None else [(i0, i1)]
+        bs = [(j0, jm), (jm, j1)] if jm is not None else [(j0, j1)]
+        return [(a, b, c, d) for a, b in rs for c, d in bs]
 
     def _split_axes(self, box: tuple[int, int, int, int]) -> tuple[bool, bool]:
         """Which axes to halve a cell along: only the axes its corners disagree across.
@@ -403,7 +416,9 @@ class Refinement:
             return
         src_i = np.full(self.shape, -1, dtype=np.int64)
         src_j = np.full(self.shape, -1, dtype=np.int64)
-        for i0, i1, j0, j1 in self._leaf_boxes().tolist():  # the nearer corner along each axis
+        boxes = self._leaf_boxes()
+        boxes = boxes[np.lexsort(boxes.T[::-1])]  # one order whatever the arrival order
+        for i0, i1, j0, j1 in boxes.tolist():  # the nearer corner along each axis
             mi, mj = (i0 + i1) // 2 + 1, (j0 + j1) // 2 + 1
             src_i[i0:mi, j0 : j1 + 1] = i0
             src_i[mi : i1 + 1, j0 : j1 + 1] = i1
@@ -428,12 +443,121 @@ class Refinement:
         return out
 
 
+Box = tuple[int, int, int, int]
+
+
+class StreamRefinement(Refinement):
+    """A :class:`Refinement` without barriers: cells split as soon as their corners arrive.
+
+    The caller takes the points ready to simulate (:meth:`take`), in batches of
+    any size and as many batches in flight as it likes, and hands back results
+    point list by point list in any order (:meth:`accept`). A cell is examined
+    when its last corner arrives; a uniform cell (a leaf) that later receives a
+    disagreeing point is examined again, as in :meth:`Refinement.wave`.
+
+    The result does not depend on the arrival order: a cell is split only when
+    the points known so far prove it unsettled (:meth:`Refinement._settled`; more
+    points can only keep it unsettled) or it is hinted, and refinement ends only
+    when every unsplit cell is settled given every simulated point. Both this
+    and the wave refinement therefore end at the least such set of splits: the
+    same simulated points, the same labels (``tests/test_adaptive.py`` checks
+    shuffled orders against the waves).
+    """
+
+    def __init__(self, *args: object, **kwargs: object) -> None:
+        super().__init__(*args, **kwargs)
+        first, self._first = np.sort(self._first), None
+        self._ready: list[int] = first.tolist()  # emitted, not handed out yet
+        self._requested = np.zeros(self.n_points, dtype=bool)
+        self._requested[first] = True
+        self._waiting: dict[int, list[Box]] = {}  # point -> cells waiting for it
+        self._missing: dict[Box, int] = {}  # cell -> corners not yet simulated
+        self._depth: dict[Box, int] = {}  # cell -> halvings from its coarse cell
+        self._level = np.full(self.n_points, np.iinfo(np.int64).max, dtype=np.int64)
+        cells, self._active = self._active, []
+        self._evaluate([c for c in cells if self._wait(c, 0)])
+
+    def wave(self) -> np.ndarray:  # pragma: no cover - guard
+        raise TypeError("StreamRefinement: use take() and accept(), not wave()")
+
+    @property
+    def ready(self) -> int:
+        """Points ready to simulate, not handed out yet."""
+        return len(self._ready)
+
+    @property
+    def done(self) -> bool:
+        """Every requested point arrived and no cell is left to examine."""
+        return not self._ready and not self._missing
+
+    def take(self, n: int | None = None) -> np.ndarray:
+        """Up to ``n`` (all if None) ready points to simulate, as flat indices (sorted)."""
+        n = len(self._ready) if n is None else max(0, int(n))
+        out, self._ready = self._ready[:n], self._ready[n:]
+        return np.sort(np.asarray(out, dtype=np.int64))
+
+    def accept(self, idx: np.ndarray, results: Mapping[str, np.ndarray]) -> None:
+        """Store the results of points ``idx`` (any handed-out points, in any order) and
+        examine every cell they complete or contradict; new points become ready."""
+        idx = np.asarray(idx, dtype=np.int64).ravel()
+        super().accept(idx, results)
+        self._reopen_leaves()  # leaves holding a new disagreeing point: in self._active
+        queue, self._active = self._active, []
+        for f in idx.tolist():
+            for box in self._waiting.pop(f, ()):
+                self._missing[box] -= 1
+                if not self._missing[box]:
+                    del self._missing[box]
+                    queue.append(box)
+        self._evaluate(queue)
+
+    def level_sizes(self) -> list[int]:
+        """Points of the refinement per level: a point's level is the smallest depth (in
+        halvings from the coarse lattice) of a cell it is a corner of. Unlike the batches,
+        this does not depend on the arrival order (the cells are those of the waves)."""
+        flat = self._level[self._level < np.iinfo(np.int64).max]
+        return np.bincount(flat).tolist() if flat.size else []
+
+    def _wait(self, box: Box, depth: int) -> bool:
+        """Register a cell for its corners not simulated yet (requesting them); True if none."""
+        self._depth[box] = depth
+        i0, i1, j0, j1 = box
+        corners = {(i0, j0), (i0, j1), (i1, j0), (i1, j1)}
+        for p in corners:
+            f = int(np.ravel_multi_index(p, self.shape))
+            self._level[f] = min(self._level[f], depth)
+        missing = [p for p in corners if not self.simulated[p]]
+        if not missing:
+            return True
+        self._missing[box] = len(missing)
+        for p in missing:
+            f = int(np.ravel_multi_index(p, self.shape))
+            self._waiting.setdefault(f, []).append(box)
+            if not self._requested[f]:
+                self._requested[f] = True
+                self._ready.append(f)
+        return False
+
+    def _evaluate(self, queue: list[Box]) -> None:
+        """Examine cells whose corners are all simulated: a leaf, or split (as in :meth:`wave`)."""
+        while queue:
+            box = queue.pop()
+            if self._settled(box) and not self._hinted(box):
+                self._leaves_new.append(box)
+                continue
+            i0, i1, j0, j1 = box
+            if i1 - i0 <= 1 and j1 - j0 <= 1:
+                continue  # every point of the cell is a simulated corner
+            depth = self._depth[box] + 1
+            queue.extend(c for c in self._children(box) if self._wait(c, depth))
+
+
 @dataclass
 class AdaptiveResult:
     """An adaptive map: ``fields`` as a dense grid would give them, plus bookkeeping."""
 
     fields: dict[str, np.ndarray]  #: FIELDS + ``simulated`` + ``verification``, shape (n_r, n_beta)
-    levels: list[int]  #: points simulated per refinement wave
+    levels: list[int]  #: points per refinement level (:meth:`Refinement.level_sizes`)
     verification: VerificationSummary | None
 
     @property
@@ -456,17 +580,27 @@ def refine(
     seed: int = 0,
     key_fields: tuple[str, ...] = KEY_FIELDS,
     dof: int = 1,
+    barriers: bool = False,
+    batch_points: int = DEFAULT_BATCH_POINTS,
 ) -> AdaptiveResult:
-    """Run a whole :class:`Refinement` with an injected batch classifier.
+    """Run a whole refinement with an injected batch classifier.
 
     ``classify_batch(i_r, i_beta)`` gets integer index arrays and returns one
     array per field of :data:`tasks.result.FIELDS` (per-mass fields with a
     trailing axis of ``dof`` masses). ``verify_fraction = 0`` and
-    ``verify_min = 0`` skip the verification sample.
+    ``verify_min = 0`` skip the verification sample. ``barriers = True`` runs
+    the wave refinement (:meth:`Refinement.wave`, one batch per level), else
+    :class:`StreamRefinement` in batches of at most ``batch_points``; the
+    labels are the same.
     """
-    ref = Refinement(shape, coarse_step, hint, key_fields, dof)
-    while (idx := ref.wave()).size:
-        ref.accept(idx, classify_batch(*np.unravel_index(idx, ref.shape)))
+    if barriers:
+        ref = Refinement(shape, coarse_step, hint, key_fields, dof)
+        while (idx := ref.wave()).size:
+            ref.accept(idx, classify_batch(*np.unravel_index(idx, ref.shape)))
+    else:
+        ref = StreamRefinement(shape, coarse_step, hint, key_fields, dof)
+        while (idx := ref.take(batch_points)).size:
+            ref.accept(idx, classify_batch(*np.unravel_index(idx, ref.shape)))
     summary = None
     if verify_fraction > 0 or verify_min > 0:
         sample = ref.verification(verify_fraction, verify_min, seed)
@@ -475,7 +609,7 @@ def refine(
         else:
             res = {k: np.zeros(0, dtype=dt) for k, (dt, _) in FIELDS.items()}
         summary = ref.accept_verification(sample, res)
-    return AdaptiveResult(ref.result(), ref.levels, summary)
+    return AdaptiveResult(ref.result(), ref.level_sizes(), summary)
 
 
 def adaptive_map(
@@ -489,6 +623,7 @@ def adaptive_map(
     seed: int = 0,
     classify_fn: Callable | None = None,
     fidelity: str = "balanced",
+    barriers: bool = False,
     **settings: object,
 ) -> AdaptiveResult:
     """The regime map of ``scene`` on the grid ``r`` x ``beta``, simulated adaptively.
@@ -508,6 +643,9 @@ def adaptive_map(
     classify_fn : callable, optional
         ``classify_fn(scene, r, beta, fidelity=..., **settings)`` returning an
         object with the FIELDS as attributes; default :func:`tasks.classify`.
+    barriers : bool
+        Refine wave by wave (the old path, kept for comparison) instead of
+        point list by point list (:class:`StreamRefinement`); same labels.
     """
     if classify_fn is None:
         from tasks.classifier import classify as classify_fn
@@ -527,4 +665,5 @@ def adaptive_map(
         verify_min,
         seed,
         dof=scene.dof,
+        barriers=barriers,
     )

@@ -6,8 +6,11 @@
   of differently labelled neighbours is simulated (boundaries resolved to one
   grid step), and the verification sample measures the true error;
 * a small real scene against a dense ``tasks.classify``;
+* refinement without barriers (``StreamRefinement``) fed point lists in shuffled
+  orders, several in flight: the same simulated points and the same fields as the
+  wave refinement, on synthetic panels and a real scene;
 * a study with ``mode = "adaptive"`` on a real LocalCluster (processes,
-  127.0.0.1), interrupted after a few waves and resumed, opened with xarray
+  127.0.0.1), interrupted after a few point lists and resumed, opened with xarray
   and compared with the in-process refinement and with ``tasks.classify``.
 """
 
@@ -24,7 +27,7 @@ from analysis.adaptive import adaptive_map, closed_form_hint, curve_hint
 from study import Study
 from study.errors import StudyError, StudyInterrupted
 from tasks import Scene, classify, regimes
-from tasks.adaptive import Refinement, coarse_nodes, refine
+from tasks.adaptive import Refinement, StreamRefinement, coarse_nodes, refine
 from tasks.result import FIELDS
 
 N_R, N_B = 256, 128
@@ -261,20 +264,21 @@ def test_adaptive_study_on_local_cluster_resumes_after_interruption(tmp_path, mo
     study = Study.from_toml(_write(tmp_path / "adaptive.toml", ADAPTIVE))
     out = tmp_path / "adaptive.nc"
     with local_cluster_client(2) as client:
-        real_advance = AdaptivePlan._advance
-        calls = [0]
+        real_accept = AdaptivePlan.accept
+        kept = []  # points of the first plane's point lists saved before the interruption
 
-        def interrupted_advance(self, pl, *args, **kwargs):
-            calls[0] += pl.sweep == (0,)
-            if calls[0] == 4:  # Ctrl-C when the third wave of the first plane is complete
-                raise KeyboardInterrupt
-            return real_advance(self, pl, *args, **kwargs)
+        def interrupted_accept(self, unit, *args, **kwargs):
+            real_accept(self, unit, *args, **kwargs)
+            if unit.sweep == (0,):
+                kept.append(unit.n_points)
+                if len(kept) == 4:  # Ctrl-C after the fourth point list of the first plane
+                    raise KeyboardInterrupt
 
-        monkeypatch.setattr(AdaptivePlan, "_advance", interrupted_advance)
+        monkeypatch.setattr(AdaptivePlan, "accept", interrupted_accept)
         with pytest.raises(StudyInterrupted):
             run_study(study, out, client=client, progress=False, stream=io.StringIO())
         assert not out.exists() and (tmp_path / "adaptive.nc.work").is_dir()
-        monkeypatch.setattr(AdaptivePlan, "_advance", real_advance)
+        monkeypatch.setattr(AdaptivePlan, "accept", real_accept)
         log = io.StringIO()
         run_study(study, out, client=client, progress=False, stream=log)
     assert not (tmp_path / "adaptive.nc.work").exists()
@@ -282,8 +286,8 @@ def test_adaptive_study_on_local_cluster_resumes_after_interruption(tmp_path, mo
         line for line in log.getvalue().splitlines() if "sweep[0]:" in line and "reused" in line
     ]
     assert len(first) == 1 and "verification: 200 of" in first[0]
-    reused = int(first[0].split(" reused")[0].split()[-1])
-    assert reused >= 3  # the point lists of waves 1-3 came from the work folder
+    reused = int(first[0].split(" saved points reused")[0].split()[-1].replace(",", ""))
+    assert reused >= sum(kept) > 0  # the points of those lists came from the work folder
 
     tree = xr.open_dataset(out)
     assert tree["regime"].dims == ("gamma", "beta", "r")
@@ -331,3 +335,86 @@ def test_straight_boundary_costs_about_two_points_per_row(axis):
     coarse = coarse_nodes(N_R, 16).size * coarse_nodes(N_B, 16).size
     refined = res.simulated_points - coarse
     assert refined <= 1.25 * rows, (refined, rows)
+
+
+# --------------------------------------------------------------------------- no barriers
+def shuffled_stream(shape, batch, seed, coarse_step=16, hint=None, dof=1):
+    """A StreamRefinement driven as a cluster would: random batch sizes, up to four point
+    lists in flight, results arriving in a random order."""
+    rng = np.random.default_rng(seed)
+    ref = StreamRefinement(shape, coarse_step, hint, dof=dof)
+    inflight: list[np.ndarray] = []
+    while not ref.done or inflight:
+        while ref.ready and len(inflight) < 4:
+            inflight.append(ref.take(int(rng.integers(1, 40))))
+        idx = inflight.pop(int(rng.integers(len(inflight))))
+        rng.shuffle(idx)
+        ref.accept(idx, batch(*np.unravel_index(idx, shape)))
+    return ref
+
+
+def waves(shape, batch, coarse_step=16, hint=None, dof=1):
+    ref = Refinement(shape, coarse_step, hint, dof=dof)
+    while (idx := ref.wave()).size:
+        ref.accept(idx, batch(*np.unravel_index(idx, shape)))
+    return ref
+
+
+def _disc_and_sine(i, j):
+    lab = np.where(j < 40 + 30 * np.sin(i / 17.0), regimes.CONTINUOUS, regimes.STICK_SLIP)
+    lab = np.where((i - 180) ** 2 + (j - 90) ** 2 < 11**2, regimes.NO_MOTION, lab)
+    return np.where((i > 20) & (i < 40) & (j > 100) & (j < 110), regimes.NOT_CONVERGED, lab)
+
+
+def _checker(i, j):  # many small features: cells reopened by their neighbours
+    return np.where(((i // 13) + (j // 7)) % 3 == 0, regimes.NO_MOTION, regimes.CONTINUOUS)
+
+
+@pytest.mark.parametrize("label_fn", [map_with_features, _disc_and_sine, _checker])
+@pytest.mark.parametrize("coarse_step", [8, 16])
+def test_no_barriers_equals_waves_in_any_order(label_fn, coarse_step):
+    batch = synthetic(label_fn)
+    hint = np.zeros((N_R, N_B), dtype=bool)
+    hint[:, 61] = True  # a hinted line that crosses no boundary of its own
+    for h in (None, hint):
+        ref_w = waves((N_R, N_B), batch, coarse_step, h)
+        want = ref_w.result()
+        assert len(ref_w.levels) > 3
+        levels = shuffled_stream((N_R, N_B), batch, 99, coarse_step, h).level_sizes()
+        assert sum(levels) == want["simulated"].sum() and len(levels) > 3
+        for seed in range(3):
+            ref_s = shuffled_stream((N_R, N_B), batch, seed, coarse_step, h)
+            assert ref_s.level_sizes() == levels  # stored per plane: independent of order
+            got = ref_s.result()
+            np.testing.assert_array_equal(got["simulated"], want["simulated"])
+            for name in ("regime", "converged", "slip_amplitude"):
+                np.testing.assert_array_equal(got[name], want[name], err_msg=name)
+    assert_boundaries_simulated(got["simulated"], got["regime"])
+
+
+def test_no_barriers_equals_waves_on_a_real_scene():
+    """2DOF ground contact (Fig. 4 style), real classify: same simulated points, same fields."""
+    scene = Scene("ground", 2)
+    r = np.linspace(0.05, 2.5, 80)
+    beta = np.linspace(0.0, 1.5, 40)
+    hint = closed_form_hint(scene, r, beta)
+    cache: dict[int, dict] = {}  # one classify per point: both runs see the same values
+
+    def batch(i, j):
+        flat = np.ravel_multi_index((i, j), (r.size, beta.size))
+        todo = np.array([f for f in flat if f not in cache], dtype=np.int64)
+        if todo.size:
+            ti, tj = np.unravel_index(todo, (r.size, beta.size))
+            res = classify(scene, r[ti], beta[tj], fidelity="fast")
+            for n, f in enumerate(todo):
+                cache[int(f)] = {k: np.asarray(getattr(res, k))[n] for k in FIELDS}
+        return {k: np.array([cache[int(f)][k] for f in flat]) for k in FIELDS}
+
+    want = waves((r.size, beta.size), batch, 8, hint, dof=2).result()
+    for seed in range(2):
+        got = shuffled_stream((r.size, beta.size), batch, seed, 8, hint, dof=2).result()
+        np.testing.assert_array_equal(got["simulated"], want["simulated"])
+        for name in FIELDS:
+            np.testing.assert_array_equal(got[name], want[name], err_msg=name)
+    assert len(set(want["regime"].ravel().tolist())) >= 2
+    assert want["simulated"].mean() < 0.6
