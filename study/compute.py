@@ -21,7 +21,7 @@ def compute_chunk(task: dict) -> dict[str, np.ndarray]:
     ----------
     task : dict
         From :meth:`study.chunks.ScenePlan.task`: ``kind`` ("grid", "points",
-        "trace", or "adaptive": a point list of one refinement wave), ``scene``
+        "trace", or "adaptive": a point list of an adaptive plane), ``scene``
         (``Scene.to_dict()``), ``settings`` (resolved
         ``Settings.to_dict()``), and the coordinates ``r``, ``beta`` (and
         per-point ``gamma``, ``kappa`` for a point list).
@@ -50,7 +50,7 @@ def _grid(task: dict) -> dict:
 
 
 def _point_list(task: dict) -> dict:
-    """A point list of one refinement wave (study.adaptive): one scene."""
+    """A point list of an adaptive plane (study.adaptive): one scene."""
     return _classify(task["scene"], task["settings"], task["r"], task["beta"])
 
 

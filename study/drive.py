@@ -7,7 +7,7 @@ refilled from ``as_completed``, so neither the client nor the scheduler ever
 holds the whole study. Workers return numpy arrays and never write files; the
 client saves each result atomically in the work folder (:mod:`study.store`)
 before handing it to its plan (:meth:`~study.chunks.ScenePlan.accept`), which
-may then have more units to give (the next wave of an adaptive plane). A
+may then have more units to give (new points of an adaptive plane). A
 killed worker costs only the tasks it was running or holding, which the
 scheduler reruns elsewhere; tasks that raise are retried (``retries``).
 """

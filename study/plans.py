@@ -17,7 +17,7 @@ and the writer (:mod:`study.netcdf`) handle every kind the same way:
 
 The kinds: :class:`study.chunks.GridPlan`, :class:`study.chunks.PointsPlan`,
 :class:`study.chunks.TracePlan` (a fixed list of units, :class:`Chunk`) and
-:class:`study.adaptive.AdaptivePlan` (units decided wave by wave).
+:class:`study.adaptive.AdaptivePlan` (units decided as results arrive).
 
 Chunks are generated lazily (:meth:`ScenePlan.chunks`): the client never holds
 one Python object per point, only the axes. Each chunk has a stable key, a
