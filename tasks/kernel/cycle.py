@@ -251,6 +251,25 @@ def _max_abs_diff(a, b):
 
 
 @njit(cache=True)
+def replay_cycles(x, xd, mode, theta, n_cycles, stats, ctx, work, rec, rec_n):
+    """Run ``n_cycles`` excitation cycles from ``(x, x')`` (updated in place) at
+    ``tau = theta``, recording every event in ``rec`` (:func:`run_cycle`).
+
+    Stops at the first cycle whose status is not ``STATUS_OK`` (``stats``
+    says why). Returns the phase and the stick start at the end.
+    """
+    stick_start = theta
+    for k in range(n_cycles):
+        t0 = theta + TWO_PI * k
+        mode, stick_start = run_cycle(
+            x, xd, mode, stick_start, stats, ctx, work, rec, rec_n, t0, t0 + TWO_PI
+        )
+        if stats[ST_STATUS] != STATUS_OK:
+            break
+    return mode, stick_start
+
+
+@njit(cache=True)
 def _advance(X, mode, stick_start, stats, ctx, work, tau_start, tau_end):
     """``X = (x, x')`` at ``tau_start`` -> state at ``tau_end``; returns the new state."""
     n = X.shape[0] // 2

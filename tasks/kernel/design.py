@@ -16,7 +16,7 @@ import numpy as np
 from numba import njit
 
 from tasks.kernel.context import _context
-from tasks.kernel.cycle import run_cycle
+from tasks.kernel.cycle import replay_cycles
 from tasks.kernel.damping import particular, stick_force_bound_damped
 from tasks.kernel.layout import (
     CTX_B,
@@ -232,17 +232,9 @@ def orbit_design(r, beta, scene, settings, state, period, samples, dout):
     while True:
         rec = np.empty((rows, REC_X + 2 * n))
         rec_n[0] = 0
-        mode = int(state[2 * n])
         x = state[:n].copy()
         xd = state[n : 2 * n].copy()
-        stick_start = theta
-        for k in range(period):
-            t0 = theta + TWO_PI * k
-            mode, stick_start = run_cycle(
-                x, xd, mode, stick_start, stats, ctx, work, rec, rec_n, t0, t0 + TWO_PI
-            )
-            if stats[ST_STATUS] != STATUS_OK:
-                break
+        replay_cycles(x, xd, int(state[2 * n]), theta, period, stats, ctx, work, rec, rec_n)
         if stats[ST_STATUS] != STATUS_OK:  # the replay ran out of budget: no answer
             for i in range(dout.shape[0]):
                 dout[i] = np.nan

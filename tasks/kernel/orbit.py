@@ -12,7 +12,7 @@ import numpy as np
 from numba import njit
 
 from tasks.kernel.context import _context
-from tasks.kernel.cycle import run_cycle
+from tasks.kernel.cycle import replay_cycles
 from tasks.kernel.layout import (
     BETA,
     CTX_B,
@@ -48,7 +48,6 @@ from tasks.kernel.layout import (
     SIGN,
     ST_STATUS,
     STATUS_OK,
-    TWO_PI,
     WORK_CAP,
 )
 from tasks.kernel.outcome import _undetermined
@@ -127,15 +126,9 @@ def orbit_holds(X, mode, theta, period, ctx, work):
         rec_n = np.zeros(1, dtype=np.int64)
         x = X[:n].copy()
         xd = X[n:].copy()
-        m = mode
-        stick_start = theta
-        for k in range(period):
-            t0 = theta + TWO_PI * k
-            m, stick_start = run_cycle(
-                x, xd, m, stick_start, stats, ctx, work, rec, rec_n, t0, t0 + TWO_PI
-            )
-            if stats[ST_STATUS] != STATUS_OK:
-                return -1 if stats[ST_STATUS] == WORK_LIMIT else 0
+        replay_cycles(x, xd, mode, theta, period, stats, ctx, work, rec, rec_n)
+        if stats[ST_STATUS] != STATUS_OK:
+            return -1 if stats[ST_STATUS] == WORK_LIMIT else 0
         if rec_n[0] < rows:
             break
         rows *= 4

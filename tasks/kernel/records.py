@@ -9,7 +9,7 @@ import numpy as np
 from numba import njit
 
 from tasks.kernel.context import _context
-from tasks.kernel.cycle import run_cycle
+from tasks.kernel.cycle import replay_cycles
 from tasks.kernel.layout import (
     CTX_B,
     CTX_BETA,
@@ -33,8 +33,6 @@ from tasks.kernel.layout import (
     REC_TAU,
     REC_X,
     ST_STATUS,
-    STATUS_OK,
-    TWO_PI,
 )
 from tasks.kernel.phases import _slip_state, _start_slip, _start_stick, _stick_state
 from tasks.kernel.propagation import evaluate
@@ -62,16 +60,8 @@ def trace_cycles(r, beta, scene, settings, X0, mode0, theta, n_cycles, max_recor
     stats = np.zeros(N_STATS)
     x = X[:n].copy()
     xd = X[n:].copy()
-    stick_start = theta
-    status = STATUS_OK
-    for k in range(n_cycles):
-        t0 = theta + TWO_PI * k
-        mode, stick_start = run_cycle(
-            x, xd, mode, stick_start, stats, ctx, work, rec, rec_n, t0, t0 + TWO_PI
-        )
-        if stats[ST_STATUS] != STATUS_OK:
-            status = stats[ST_STATUS]
-            break
+    mode, _ = replay_cycles(x, xd, mode, theta, n_cycles, stats, ctx, work, rec, rec_n)
+    status = stats[ST_STATUS]
     out = np.empty(2 * n)
     out[:n] = x
     out[n:] = xd
