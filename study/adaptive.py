@@ -85,6 +85,12 @@ class PointList:
     def n_points(self) -> int:
         return int(self.idx.size)
 
+    @property
+    def saved_with(self) -> dict[str, np.ndarray]:
+        """Saved with the results (:mod:`study.drive`): the points' indices, so a resumed
+        run answers the refinement from them."""
+        return {"index": self.idx}
+
 
 @dataclass
 class _Plane:
@@ -102,6 +108,7 @@ class _Plane:
     sample: np.ndarray | None = None  # the verification sample (sorted)
     out: dict = field(default_factory=dict)  # its results
     outstanding: set = field(default_factory=set)  # keys handed out, not arrived
+    hint_due: bool = False  # the closed-form hint is computed at the first result
     batches: int = 0
     reused: int = 0  # points answered from saved point lists
     computed: int = 0
@@ -275,7 +282,7 @@ class AdaptivePlan(ScenePlan):
             idx, pl.todo = pl.todo[known], pl.todo[~known]
             arrays = {k: v[rows[known]] for k, v in pl.saved.items()}
             if pl.phase == "refine":
-                pl.ref.accept(idx, arrays)
+                self._refinement(pl).accept(idx, arrays)
             else:
                 self._put(pl, idx, arrays)
             pl.reused += idx.size
@@ -298,16 +305,15 @@ class AdaptivePlan(ScenePlan):
         return unit.task
 
     def accept(self, unit: PointList, arrays: dict[str, np.ndarray], work) -> None:
-        """Keep a point list's indices with its results (for a resumed run), then
-        hand the results to the refinement or the verification sample."""
-        work.save(unit.scene, unit.key, dict(arrays) | {"index": unit.idx})
+        """Hand a point list's results (saved with its indices by :mod:`study.drive`,
+        :attr:`PointList.saved_with`) to the refinement or the verification sample."""
         pl = self._active[unit.sweep]
         pl.outstanding.discard(unit.key)
         pl.computed += 1
         if unit.phase == "verify":
             self._put(pl, unit.idx, arrays)
             return
-        pl.ref.accept(unit.idx, arrays)
+        self._refinement(pl).accept(unit.idx, arrays)
         pl.batches += 1
         if self.verbose and time.monotonic() - pl.shown > PRINT_EVERY:
             pl.shown = time.monotonic()
@@ -332,12 +338,21 @@ class AdaptivePlan(ScenePlan):
 
     def _start(self, sweep: tuple[int, ...], work) -> _Plane:
         axes, spec = self._axes, self.spec
-        hint = self._hint(sweep, axes)
-        ref = StreamRefinement(spec.plane_shape, spec.coarse_step, hint, dof=spec.dof)
+        ref = StreamRefinement(spec.plane_shape, spec.coarse_step, dof=spec.dof)
         tag = f"{spec.name}-pts-{self.plane_key(sweep, axes).rsplit('-', 1)[1][:12]}"
         pl = _Plane(sweep, ref, self._ident(sweep, axes), tag, time.perf_counter())
+        pl.hint_due = spec.hint != "none"
         self._load_saved(pl, work)
         return pl
+
+    def _refinement(self, pl: _Plane) -> StreamRefinement:
+        """The plane's refinement, its hint set before its first result: the coarse
+        lattice does not depend on the hint, so the client computes the hint while the
+        first point lists compute."""
+        if pl.hint_due:
+            pl.ref.set_hint(self._hint(pl.sweep, self._axes))
+            pl.hint_due = False
+        return pl.ref
 
     def _load_saved(self, pl: _Plane, work) -> None:
         """The saved point lists of a plane (verified in :meth:`prepare`), their indices
@@ -366,9 +381,7 @@ class AdaptivePlan(ScenePlan):
         pl.row = np.full(pl.ref.n_points, -1, dtype=np.int64)
         pl.row[np.concatenate(idx)] = np.arange(sum(i.size for i in idx))
 
-    def _hint(self, sweep: tuple[int, ...], axes: dict) -> np.ndarray | None:
-        if self.spec.hint == "none":
-            return None
+    def _hint(self, sweep: tuple[int, ...], axes: dict) -> np.ndarray:
         from analysis.adaptive import closed_form_hint
 
         ratios = {k: float(axes[k][i]) for k, i in zip(self.spec.sweeps, sweep, strict=True)}

@@ -5,8 +5,9 @@ Every plan (:mod:`study.chunks`) hands out its units of work through
 units in flight (a few per worker thread, resized as workers come and go),
 refilled from ``as_completed``, so neither the client nor the scheduler ever
 holds the whole study. Workers return numpy arrays and never write files; the
-client saves each result atomically in the work folder (:mod:`study.store`)
-before handing it to its plan (:meth:`~study.chunks.ScenePlan.accept`), which
+client saves each result atomically in the work folder (:mod:`study.store`),
+once, with what its unit adds (``saved_with``: the indices of an adaptive point
+list), before handing it to its plan (:meth:`~study.chunks.ScenePlan.accept`), which
 may then have more units to give (new points of an adaptive plane). A
 killed worker costs only the tasks it was running or holding, which the
 scheduler reruns elsewhere; tasks that raise are retried (``retries``).
@@ -31,6 +32,33 @@ WINDOW_PER_THREAD = 4
 MIN_WINDOW = 16
 #: Seconds between two looks at the number of worker threads (window size).
 WINDOW_REFRESH = 5.0
+#: Largest planned compute, in CPU seconds per core, done by threads of the client's
+#: process instead of worker processes (a minute of wall time: beyond it the start-up
+#: of the processes, :data:`study.cost.STARTUP_SECONDS`, is small, and a crash of one
+#: worker costs one worker, not the run).
+IN_PROCESS_SECONDS = 60.0
+
+
+def local_threads(plans: list[ScenePlan], work, cores: int) -> int:
+    """Threads of the client's process that compute the missing work of ``plans`` on
+    this machine, or 0 when worker processes pay (one per core, :func:`study.run.connect`).
+
+    The single-contact simulator releases the GIL (``tasks.kernel.run_points``,
+    ``orbit_designs``), so ``cores`` threads compute as fast as ``cores`` processes
+    without their start-up: threads while the planned compute is at most
+    :data:`IN_PROCESS_SECONDS` per core. The several-contact simulator holds the
+    GIL: one thread, and only while the processes' start-up would cost more than
+    they save.
+    """
+    from study import contacts
+    from study.cost import STARTUP_SECONDS
+
+    cpu = sum(p.est_seconds * p.missing_points(work) / max(1, p.spec.n_points) for p in plans)
+    if cores <= 1:
+        return 1
+    if any(contacts.is_multi(p.spec.structure) for p in plans):  # holds the GIL
+        return 1 if cpu * (1 - 1 / cores) < STARTUP_SECONDS else 0
+    return cores if cpu / cores <= IN_PROCESS_SECONDS else 0
 
 
 @dataclass
@@ -132,7 +160,8 @@ class _Window:
     def arrived(self, fut, arrays) -> None:
         """Save one result, hand it to its plan, count it."""
         _, p, unit = self.inflight.pop(fut.key)
-        self.work.save(unit.scene, unit.key, arrays)
+        extra = getattr(unit, "saved_with", None)  # e.g. an adaptive point list's indices
+        self.work.save(unit.scene, unit.key, arrays if extra is None else arrays | extra)
         fut.release()
         self.done.saved += 1
         seconds = float(arrays["seconds"])

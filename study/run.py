@@ -35,7 +35,7 @@ from study.connect import DEFAULT_SCHEDULER_TIMEOUT, call_within, check_timeout
 from study.connect import connect as connect_scheduler
 from study.cost import CostTracker
 from study.definition import Study
-from study.drive import Driven, drive
+from study.drive import Driven, drive, local_threads
 from study.errors import StudyError, StudyFailed, StudyInterrupted
 from study.firstrun import compile_once
 from study.preflight import check_run, default_workers, older_result_note
@@ -115,14 +115,14 @@ def connect(
     stream: TextIO = sys.stderr,
     scheduler_timeout: float = DEFAULT_SCHEDULER_TIMEOUT,
     worker_timeout: float = DEFAULT_WORKER_TIMEOUT,
-    in_process: bool = False,
+    in_process: int = 0,
 ):
     """A Dask client: the one given, a running scheduler, or a new LocalCluster.
 
-    The LocalCluster has one single-threaded worker process per core (the
-    numerics hold the GIL) and listens on 127.0.0.1 only; with ``in_process``
-    one worker thread in this process instead (no process to start: for studies
-    shorter than the start-up, :func:`in_process_pays`). With a running
+    The LocalCluster has one single-threaded worker process per core and
+    listens on 127.0.0.1 only; with ``in_process`` threads, one worker of that
+    many threads in this process instead (no process to start: for studies
+    whose planned compute is short, :func:`study.drive.local_threads`). With a running
     scheduler, ``workers`` means: wait until that many workers are connected.
     A client that is given is neither changed nor closed.
     """
@@ -169,7 +169,7 @@ def connect(
         cluster = start_deferring_sigint(  # Ctrl-C during the start: one line (study.watchdog)
             lambda: LocalCluster(
                 n_workers=n,
-                threads_per_worker=1,
+                threads_per_worker=max(1, in_process),
                 processes=not in_process,
                 # tcp:// for a cluster in this process too: inproc:// opens a port on
                 # every interface beside it
@@ -185,7 +185,8 @@ def connect(
             client = Client(cluster)
             client.register_plugin(IgnoreSigint())
             what = (
-                "a small study: computing in this process (no worker processes to wait for)"
+                "a small study: computing in this process (no worker processes to wait "
+                f"for), {in_process} thread{'s' if in_process > 1 else ''}"
                 if in_process
                 else f"local cluster with {n} workers"
             )
@@ -413,7 +414,7 @@ def _compute(plans, work, where, retries, progress, timeouts, done, stream):
         }
     )
     bar.eta_seconds = bar.tracker.eta
-    in_process = local and workers is None and in_process_pays(plans, work)
+    in_process = local_threads(plans, work, default_workers()) if local and workers is None else 0
     if local:
         compile_once(stream)  # before the local workers start: they load it from cache
     quiet = quiet_dask_logs() if client is None else nullcontext()
@@ -437,17 +438,6 @@ def _compute(plans, work, where, retries, progress, timeouts, done, stream):
         wall = time.perf_counter() - t1
     bar.close()
     return done.compute_seconds, wall
-
-
-def in_process_pays(plans: list[ScenePlan], work) -> bool:
-    """True if the missing work is done sooner by one thread here than by the worker
-    processes of a local cluster, whose start-up (:data:`study.cost.STARTUP_SECONDS`)
-    would be longer than what they save (the numerics hold the GIL: one thread)."""
-    from study.cost import STARTUP_SECONDS
-
-    cpu = sum(p.est_seconds * p.missing_points(work) / max(1, p.spec.n_points) for p in plans)
-    workers = default_workers()
-    return workers <= 1 or cpu * (1 - 1 / workers) < STARTUP_SECONDS
 
 
 def _assemble(study: Study, plans: list[ScenePlan], work, output, command: str | None):

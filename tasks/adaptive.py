@@ -173,15 +173,13 @@ class Refinement:
             raise ValueError(f"coarse_step: must be an integer >= 1, got {coarse_step!r}")
         self.shape = (n_r, n_b)
         self.coarse_step = int(coarse_step)
-        self.hint = None if hint is None else np.asarray(hint, dtype=bool)
-        if self.hint is not None and self.hint.shape != self.shape:
-            raise ValueError(f"hint: shape {self.hint.shape} differs from the map's {self.shape}")
         self.key_fields = tuple(key_fields)
         self.fields = {
             k: np.full(field_shape(k, self.shape, dof), _fill(dt), dtype=dt)
             for k, (dt, _) in FIELDS.items()
         }  # per-mass fields have a trailing mass axis
         self.simulated = np.zeros(self.shape, dtype=bool)
+        self.set_hint(hint)
         self.key = np.zeros(self.shape, dtype=np.int64)
         self.verification_flag = np.zeros(self.shape, dtype=np.int8)
         self.levels: list[int] = []  # points simulated per wave
@@ -201,6 +199,15 @@ class Refinement:
         self._last_new: tuple[np.ndarray, np.ndarray] | None = None
         self._sample: np.ndarray | None = None
         self._filled = False
+
+    def set_hint(self, hint: np.ndarray | None) -> None:
+        """Set the hint (see the class notes). The first points (the coarse lattice) do
+        not depend on it, so it may come after them, but before any result arrives."""
+        if self.simulated.any():
+            raise ValueError("hint: must be set before the first results arrive")
+        self.hint = None if hint is None else np.asarray(hint, dtype=bool)
+        if self.hint is not None and self.hint.shape != self.shape:
+            raise ValueError(f"hint: shape {self.hint.shape} differs from the map's {self.shape}")
 
     # ------------------------------------------------------------ waves
     @property

@@ -418,3 +418,57 @@ def test_no_barriers_equals_waves_on_a_real_scene():
             np.testing.assert_array_equal(got[name], want[name], err_msg=name)
     assert len(set(want["regime"].ravel().tolist())) >= 2
     assert want["simulated"].mean() < 0.6
+
+
+def test_hint_set_after_the_coarse_lattice_changes_nothing():
+    """The study computes the hint while the coarse lattice computes
+    (StreamRefinement.set_hint before the first result): the same map as a hint
+    given at construction; after the first result it is refused."""
+    batch = synthetic(map_with_features)
+    hint = np.zeros((N_R, N_B), dtype=bool)
+    hint[:, 61] = True
+    want = shuffled_stream((N_R, N_B), batch, 0, 16, hint).result()
+    ref = StreamRefinement((N_R, N_B), 16)
+    first = ref.take()
+    ref.set_hint(hint)
+    ref.accept(first, batch(*np.unravel_index(first, ref.shape)))
+    while (idx := ref.take(50)).size:
+        ref.accept(idx, batch(*np.unravel_index(idx, ref.shape)))
+    got = ref.result()
+    np.testing.assert_array_equal(got["simulated"], want["simulated"])
+    np.testing.assert_array_equal(got["regime"], want["regime"])
+    assert got["simulated"].sum() > shuffled_stream((N_R, N_B), batch, 0, 16).simulated.sum()
+    with pytest.raises(ValueError, match="before the first results"):
+        ref.set_hint(None)
+
+
+def test_warm_started_point_lists_give_the_same_map_in_any_order():
+    """``[settings] warm = true``: each point list seeds its points from the orbits of
+    the points before it in the list, and which points share a list depends on the
+    arrival order. The labels (hence the refinement) do not: same simulated points and
+    regimes as cold point lists in every order; the other fields agree to the
+    steady-state tolerance (not to the bit: they depend on the seed)."""
+    scene = Scene("ground", 2)
+    r = np.linspace(0.05, 2.5, 80)
+    beta = np.linspace(0.0, 1.5, 40)
+
+    def batch(warm):
+        def run(i, j):
+            res = classify(scene, r[i], beta[j], fidelity="fast", warm=warm)
+            return {k: np.asarray(getattr(res, k)) for k in FIELDS}
+
+        return run
+
+    cold = shuffled_stream((r.size, beta.size), batch(False), 0, 8, dof=2).result()
+    for seed in range(2):
+        warm = shuffled_stream((r.size, beta.size), batch(True), seed, 8, dof=2).result()
+        np.testing.assert_array_equal(warm["simulated"], cold["simulated"])
+        for name in ("regime", "converged", "stops_per_cycle", "period", "start_dependent"):
+            np.testing.assert_array_equal(warm[name], cold[name], err_msg=name)
+        moving = cold["regime"] > regimes.NO_MOTION
+        np.testing.assert_allclose(
+            warm["slip_amplitude"][moving], cold["slip_amplitude"][moving], rtol=1e-4
+        )
+        # the fast preset's looser section tolerance
+        np.testing.assert_allclose(warm["stick_fraction"], cold["stick_fraction"], atol=1e-4)
+    assert len(set(cold["regime"].ravel().tolist())) >= 2

@@ -407,7 +407,7 @@ def _viscous_work(ctx, work, rec, taus, r, C):
     return 2.0 * r * r * total
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def orbit_designs(r, beta, scene, settings, out, final, samples):
     """:func:`orbit_design` for every converged point of :func:`run_points`' output.
 

@@ -425,7 +425,7 @@ def _seeds_next(out):
     )
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def run_points(r, beta, scene, settings):
     """Classify every point ``(r[i], beta[i])``.
 
