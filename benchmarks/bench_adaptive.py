@@ -18,15 +18,24 @@ and the verification sample's own estimate.
 
 A dense 1000 x 500 panel is ~2-3 min of one core (2DOF, balanced).
 
-``--cluster``: refinement without barriers against the old wave-by-wave
-refinement (``study.adaptive.AdaptivePlan.barriers``), both as studies on one
-LocalCluster of ``--workers`` single-threaded processes (started and warmed up
-before the timings), on the Fig. 4 example (``examples/adaptive.toml``) and the
-3DOF contact between masses 2 and 3; ``--dense`` adds the dense grid study of
-the same scenes on the same cluster. Prints levels, point lists, simulated
-fraction, wall seconds and whether the labels are equal:
+``--cluster``: the adaptive study and the dense grid study of the same
+resolution, both on one LocalCluster of ``--workers`` single-threaded worker
+processes (started and warmed up before the timings), one scene after the
+other in the same run: the Fig. 4 example's panel (``examples/adaptive.toml``)
+and three scenes beyond the paper (3DOF contact between masses 2 and 3, 4DOF
+base contact on m3, 6DOF ground contact on m5), or ``--scenes``. Prints the
+simulated fraction, levels, point lists, wall seconds of both and their ratio,
+the labels equal to the dense grid's and the verification sample;
+``--barriers`` adds the old wave-by-wave refinement
+(``study.adaptive.AdaptivePlan.barriers``), ``--no-dense`` skips the dense grids:
 
-    python benchmarks/bench_adaptive.py --cluster --size 1000x500 --workers 2 --dense
+    python benchmarks/bench_adaptive.py --cluster --size 1000x500 --scenes fig04:gamma1_kappa1
+
+``--example N``: ``study run examples/adaptive.toml`` through the CLI N times
+(a fresh process each, the compiled kernel cached; small studies compute in
+threads of that process, :func:`study.drive.local_threads`), wall and CPU seconds:
+
+    python benchmarks/bench_adaptive.py --example 3
 """
 
 from __future__ import annotations
@@ -90,10 +99,11 @@ def dense_regime(scene, r, beta, cache: Path | None, fidelity: str) -> tuple[np.
     return regime, seconds
 
 
-#: Scenes of ``--cluster``: (name, contact, dof, contact_mass, r stop).
-CLUSTER_SCENES = (
-    ("fig04_gamma1_kappa1", "ground", 2, 1, 2.5),
+#: Scenes of ``--cluster`` beyond the paper: (name, contact, dof, contact_mass, r stop).
+OTHER_SCENES = (
     ("dof3_mass_m2_m3", "mass", 3, 2, 3.0),
+    ("dof4_base_m3", "base", 4, 3, 3.0),
+    ("dof6_ground_m5", "ground", 6, 5, 3.0),
 )
 STUDY = """
 [study]
@@ -105,17 +115,46 @@ name = "{name}"
 contact = "{contact}"
 dof = {dof}
 contact_mass = {cm}
-gamma = 1.0
-kappa = 1.0
+gamma = {gamma}
+kappa = {kappa}
 {mode}
-r = {{start = 0.02, stop = {r_stop}, num = {n_r}}}
-beta = {{start = 0.0, stop = 1.5, num = {n_beta}}}
+r = {{start = {r_start}, stop = {r_stop}, num = {n_r}}}
+beta = {{start = {b_start}, stop = {b_stop}, num = {n_beta}}}
 """
 ADAPTIVE_MODE = 'mode = "adaptive"\ncoarse_step = {step}\nverify_fraction = 0.005\nhint = "exact"'
 
 
-def _run(text: str, folder: Path, client, barriers: bool) -> tuple[float, object, str]:
-    """Wall seconds, regime and simulated arrays, and the log of one study run."""
+def cluster_scenes(names: list[str] | None) -> list[dict]:
+    """The scenes of ``--cluster``: Fig. 4 (1, 1) and :data:`OTHER_SCENES` by default,
+    or those named (``fig04:gamma1_kappa1`` for a paper panel, a name of OTHER_SCENES)."""
+    names = names or ["fig04:gamma1_kappa1", *(s[0] for s in OTHER_SCENES)]
+    other = {s[0]: s for s in OTHER_SCENES}
+    out = []
+    for name in names:
+        if name in other:
+            _, contact, dof, cm, r_stop = other[name]
+            out.append(
+                dict(name=name, contact=contact, dof=dof, cm=cm, gamma=1.0, kappa=1.0,
+                     r_start=0.02, r_stop=r_stop, b_start=0.0, b_stop=1.5)
+            )  # fmt: skip
+            continue
+        found = panels([name])
+        if not found or ":" not in name:
+            raise SystemExit(f"--scenes: unknown scene {name!r}")
+        spec = found[0][1]
+        sc = spec.base_scene
+        out.append(
+            dict(name=name.replace(":", "_"), contact=sc.contact, dof=sc.dof,
+                 cm=sc.contact_mass, gamma=sc.gamma, kappa=sc.kappa,
+                 r_start=spec.r.start, r_stop=spec.r.stop,
+                 b_start=spec.beta.start, b_stop=spec.beta.stop)
+        )  # fmt: skip
+    return out
+
+
+def _run(text: str, folder: Path, client, barriers: bool = False) -> tuple[float, dict, str]:
+    """Wall seconds, regime and simulated arrays (and attributes), and the log of one
+    study run (``client`` None: as ``study run`` would, threads of this process)."""
     import io
 
     import xarray as xr
@@ -142,7 +181,7 @@ def _run(text: str, folder: Path, client, barriers: bool) -> tuple[float, object
 
 
 def cluster_main(args, n_r: int, n_beta: int) -> int:
-    """Without barriers vs with barriers (and the dense grid) on one LocalCluster."""
+    """Adaptive and dense studies of each scene on one LocalCluster, same run."""
     import re
     import tempfile
 
@@ -150,7 +189,13 @@ def cluster_main(args, n_r: int, n_beta: int) -> int:
 
     from tasks import Scene
 
+    scenes = cluster_scenes(args.scenes)
     classify(Scene("mass", 3, 2), 1.0, 0.1)  # compile / load the kernel before the workers
+    mode = ADAPTIVE_MODE.format(step=args.coarse_step)
+
+    def text(sc: dict, size: tuple[int, int], mode: str) -> str:
+        return STUDY.format(fidelity=args.fidelity, mode=mode, n_r=size[0], n_beta=size[1], **sc)
+
     with (
         LocalCluster(
             n_workers=args.workers,
@@ -163,54 +208,77 @@ def cluster_main(args, n_r: int, n_beta: int) -> int:
         tempfile.TemporaryDirectory() as tmp,
     ):
         folder = Path(tmp)
-
-        def text(name, contact, dof, cm, r_stop, size, mode):
-            return STUDY.format(
-                fidelity=args.fidelity, name=name, contact=contact, dof=dof, cm=cm,
-                r_stop=r_stop, n_r=size[0], n_beta=size[1], mode=mode,
-            )  # fmt: skip
-
-        mode = ADAPTIVE_MODE.format(step=args.coarse_step)
-        for scene in CLUSTER_SCENES:  # warm up the workers (kernel loaded) outside the timings
-            _run(text(*scene, (40, 20), mode), folder, client, False)
+        for sc in scenes:  # warm up the workers (kernel loaded) outside the timings
+            _run(text(sc, (40, 20), mode), folder, client)
         print(
-            f"adaptive studies with and without barriers, {n_r} x {n_beta}, "
-            f"{args.workers} workers of one thread, fidelity {args.fidelity}, "
-            f"coarse_step {args.coarse_step}, same cluster and run"
+            f"adaptive vs dense studies, {n_r} x {n_beta}, one LocalCluster of "
+            f"{args.workers} single-threaded worker processes (started and warmed up "
+            f"before the timings), fidelity {args.fidelity}, coarse_step "
+            f"{args.coarse_step}, hint exact, verify_fraction 0.005; same run"
         )
         print(
-            "| scene | refinement | levels | point lists | % simulated | wall s "
-            "| vs barriers | vs dense | labels equal to barriers | to dense |"
+            "| scene | points | % simulated | levels | point lists | adaptive s "
+            "| dense s | dense / adaptive | labels equal to dense | verification |"
         )
         print("|" + "---|" * 10)
-        for scene in CLUSTER_SCENES:
-            rows, dense = {}, None
-            for barriers in (True, False):
-                rows[barriers] = _run(text(*scene, (n_r, n_beta), mode), folder, client, barriers)
-            if args.dense:
-                dense = _run(text(*scene, (n_r, n_beta), ""), folder, client, False)
-            for barriers in (True, False):
-                sec, arr, log = rows[barriers]
-                lists = sum(int(m) for m in re.findall(r"(\d+) point lists computed", log))
-                levels = json.loads(arr["attrs"]["adaptive_waves_per_plane"])[0]
-                frac = 100 * float(arr["attrs"]["adaptive_simulated_fraction"])
-                same = np.array_equal(arr["regime"], rows[True][1]["regime"]) and np.array_equal(
-                    arr["simulated"], rows[True][1]["simulated"]
+        for sc in scenes:
+            sec, arr, log = _run(text(sc, (n_r, n_beta), mode), folder, client)
+            at = arr["attrs"]
+            lists = sum(int(m) for m in re.findall(r"(\d+) point lists computed", log))
+            levels = json.loads(at["adaptive_waves_per_plane"])[0]
+            frac = 100 * float(at["adaptive_simulated_fraction"])
+            verify = f"{at['verification_agree']} / {at['verification_sampled']}"
+            dense_s = ratio = equal = "-"
+            if not args.no_dense:
+                d_sec, d_arr, _ = _run(text(sc, (n_r, n_beta), ""), folder, client)
+                n = d_arr["regime"].size
+                same = int((arr["regime"] == d_arr["regime"]).sum())
+                dense_s, ratio = f"{d_sec:.1f}", f"{d_sec / sec:.1f}"
+                equal = f"{percent(same, n, 4)} ({n - same} differ)"
+            print(
+                f"| {sc['name']} | {n_r * n_beta:,} | {frac:.2f} | {levels} | {lists} "
+                f"| {sec:.1f} | {dense_s} | {ratio} | {equal} | {verify} |",
+                flush=True,
+            )
+            if args.barriers:
+                b_sec, b_arr, _ = _run(text(sc, (n_r, n_beta), mode), folder, client, True)
+                same = np.array_equal(b_arr["regime"], arr["regime"]) and np.array_equal(
+                    b_arr["simulated"], arr["simulated"]
                 )
-                vs_dense = f"{dense[0] / sec:.1f}" if dense else "-"
-                eq_dense = (
-                    percent(int((arr["regime"] == dense[1]["regime"]).sum()), n_r * n_beta, 4)
-                    if dense
-                    else "-"
-                )
-                print(
-                    f"| {scene[0]} | {'waves' if barriers else 'no barriers'} | {levels} "
-                    f"| {lists} | {frac:.2f} | {sec:.1f} | {rows[True][0] / sec:.2f} "
-                    f"| {vs_dense} | {same} | {eq_dense} |",
-                    flush=True,
-                )
-            if dense:
-                print(f"| {scene[0]} | dense grid | | | 100 | {dense[0]:.1f} | | 1.0 | | |")
+                print(f"| {sc['name']}, waves | | | | | {b_sec:.1f} | | | same map: {same} | |")
+    return 0
+
+
+def example_main(args) -> int:
+    """``study run examples/adaptive.toml`` (the CLI, a fresh process each time, the
+    compiled kernel in its cache): wall seconds and the CPU seconds of the process."""
+    import resource
+    import statistics
+    import subprocess
+    import tempfile
+
+    from tasks import Scene
+
+    classify(Scene("ground", 2), 1.0, 0.3)  # the kernel in the disk cache
+    example = EXAMPLES / "adaptive.toml"
+    walls, cpus = [], []
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "x.nc"
+        for _ in range(args.example):
+            out.unlink(missing_ok=True)
+            before = resource.getrusage(resource.RUSAGE_CHILDREN)
+            t = time.perf_counter()
+            cmd = [sys.executable, "-m", "study", "run", str(example), "-o", str(out), "--quiet"]
+            subprocess.run(cmd, check=True, capture_output=True)
+            walls.append(time.perf_counter() - t)
+            after = resource.getrusage(resource.RUSAGE_CHILDREN)
+            cpus.append(after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime)
+    load = Path("/proc/loadavg").read_text().split()[0] if Path("/proc/loadavg").exists() else "?"
+    print(f"study run examples/adaptive.toml -o x.nc, {args.example} runs, load average {load}")
+    print("| | best | median |")
+    print("|---|---:|---:|")
+    print(f"| wall s | {min(walls):.1f} | {statistics.median(walls):.1f} |")
+    print(f"| CPU s (all threads) | {min(cpus):.1f} | {statistics.median(cpus):.1f} |")
     return 0
 
 
@@ -222,11 +290,16 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--hint", default="exact", choices=("exact", "paper", "none"))
     ap.add_argument("--fidelity", default="balanced")
     ap.add_argument("--cache", type=Path, default=Path(".bench_adaptive_cache"))
-    ap.add_argument("--cluster", action="store_true", help="waves vs no barriers on Dask")
+    ap.add_argument("--cluster", action="store_true", help="adaptive vs dense studies on Dask")
     ap.add_argument("--workers", type=int, default=2, help="--cluster: worker processes")
-    ap.add_argument("--dense", action="store_true", help="--cluster: the dense grid too")
+    ap.add_argument("--scenes", nargs="*", help="--cluster: fig04:gamma1_kappa1, dof3_mass_m2_m3")
+    ap.add_argument("--no-dense", action="store_true", help="--cluster: adaptive studies only")
+    ap.add_argument("--barriers", action="store_true", help="--cluster: the old waves too")
+    ap.add_argument("--example", type=int, default=0, help="time the CLI on the example N times")
     args = ap.parse_args(argv)
     n_r, n_beta = (int(x) for x in args.size.lower().split("x"))
+    if args.example:
+        return example_main(args)
     if args.cluster:
         return cluster_main(args, n_r, n_beta)
     chosen = panels(args.panels)

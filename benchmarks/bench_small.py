@@ -2,12 +2,14 @@
 
     .venv/bin/python benchmarks/bench_small.py            # quickstart, 3 repeats
 
-``study run`` of a small study (``examples/quickstart.toml``: 1,000 points, about
-0.4 CPU s) without ``--workers`` computes in the client's process (one worker
-thread: no worker processes to start, :func:`study.run.in_process_pays`); with
-``--workers 2`` it starts two worker processes first, as before. Printed: the
-wall seconds of each ``study run`` (a fresh process each; the numba cache is
-filled first), best and median of the repeats, and the ratio.
+``study run`` of a small or medium study (``examples/quickstart.toml``: 1,000
+points, about 0.4 CPU s; anything planned at most
+:data:`study.drive.IN_PROCESS_SECONDS` per core) without ``--workers`` computes
+in threads of the client's process, one per core (the simulator releases the
+GIL; no worker processes to start, :func:`study.drive.local_threads`); with
+``--workers 2`` it starts two worker processes first. Printed: the wall seconds
+of each ``study run`` (a fresh process each; the numba cache is filled first),
+best and median of the repeats, and the ratio.
 """
 
 from __future__ import annotations
