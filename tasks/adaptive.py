@@ -529,16 +529,17 @@ class StreamRefinement(Refinement):
         """Register a cell for its corners not simulated yet (requesting them); True if none."""
         self._depth[box] = depth
         i0, i1, j0, j1 = box
-        corners = {(i0, j0), (i0, j1), (i1, j0), (i1, j1)}
-        for p in corners:
-            f = int(np.ravel_multi_index(p, self.shape))
-            self._level[f] = min(self._level[f], depth)
-        missing = [p for p in corners if not self.simulated[p]]
+        n_b = self.shape[1]
+        corners = {i0 * n_b + j0, i0 * n_b + j1, i1 * n_b + j0, i1 * n_b + j1}  # flat indices
+        level, simulated = self._level, self.simulated.reshape(-1)
+        for f in corners:
+            if depth < level[f]:
+                level[f] = depth
+        missing = [f for f in corners if not simulated[f]]
         if not missing:
             return True
         self._missing[box] = len(missing)
-        for p in missing:
-            f = int(np.ravel_multi_index(p, self.shape))
+        for f in missing:
             self._waiting.setdefault(f, []).append(box)
             if not self._requested[f]:
                 self._requested[f] = True
