@@ -25,7 +25,9 @@ other in the same run: the Fig. 4 example's panel (``examples/adaptive.toml``)
 and three scenes beyond the paper (3DOF contact between masses 2 and 3, 4DOF
 base contact on m3, 6DOF ground contact on m5), or ``--scenes``. Prints the
 simulated fraction, levels, point lists, wall seconds of both and their ratio,
-the labels equal to the dense grid's and the verification sample;
+the CPU seconds of both (this process and the workers: a busy machine stretches
+the wall seconds of one run more than the other's, not the CPU seconds) and
+their ratio, the labels equal to the dense grid's and the verification sample;
 ``--barriers`` adds the old wave-by-wave refinement
 (``study.adaptive.AdaptivePlan.barriers``), ``--no-dense`` skips the dense grids:
 
@@ -152,9 +154,16 @@ def cluster_scenes(names: list[str] | None) -> list[dict]:
     return out
 
 
+def _cpu(client) -> float:
+    """CPU seconds used so far by this process and the cluster's worker processes."""
+    workers = client.run(time.process_time) if client is not None else {}
+    return time.process_time() + sum(workers.values())
+
+
 def _run(text: str, folder: Path, client, barriers: bool = False) -> tuple[float, dict, str]:
-    """Wall seconds, regime and simulated arrays (and attributes), and the log of one
-    study run (``client`` None: as ``study run`` would, threads of this process)."""
+    """Wall seconds, regime and simulated arrays (and attributes, and ``cpu``: the CPU
+    seconds of this process and the workers), and the log of one study run
+    (``client`` None: as ``study run`` would, threads of this process)."""
     import io
 
     import xarray as xr
@@ -168,14 +177,17 @@ def _run(text: str, folder: Path, client, barriers: bool = False) -> tuple[float
     log = io.StringIO()
     AdaptivePlan.barriers = barriers
     try:
+        cpu = _cpu(client)
         t = time.perf_counter()
         run_study(Study.from_toml(path), out, client=client, progress=False, stream=log)
         seconds = time.perf_counter() - t
+        cpu = _cpu(client) - cpu
     finally:
         AdaptivePlan.barriers = False
     with xr.open_dataset(out) as ds:
         arrays = {k: ds[k].values for k in ("regime", "simulated") if k in ds}
         arrays["attrs"] = dict(ds.attrs)
+    arrays["cpu"] = cpu
     out.unlink()
     return seconds, arrays, log.getvalue()
 
@@ -218,9 +230,10 @@ def cluster_main(args, n_r: int, n_beta: int) -> int:
         )
         print(
             "| scene | points | % simulated | levels | point lists | adaptive s "
-            "| dense s | dense / adaptive | labels equal to dense | verification |"
+            "| dense s | dense / adaptive | adaptive CPU s | dense CPU s | CPU ratio "
+            "| labels equal to dense | verification |"
         )
-        print("|" + "---|" * 10)
+        print("|" + "---|" * 13)
         for sc in scenes:
             sec, arr, log = _run(text(sc, (n_r, n_beta), mode), folder, client)
             at = arr["attrs"]
@@ -228,16 +241,18 @@ def cluster_main(args, n_r: int, n_beta: int) -> int:
             levels = json.loads(at["adaptive_waves_per_plane"])[0]
             frac = 100 * float(at["adaptive_simulated_fraction"])
             verify = f"{at['verification_agree']} / {at['verification_sampled']}"
-            dense_s = ratio = equal = "-"
+            dense_s = ratio = equal = dense_cpu = cpu_ratio = "-"
             if not args.no_dense:
                 d_sec, d_arr, _ = _run(text(sc, (n_r, n_beta), ""), folder, client)
                 n = d_arr["regime"].size
                 same = int((arr["regime"] == d_arr["regime"]).sum())
                 dense_s, ratio = f"{d_sec:.1f}", f"{d_sec / sec:.1f}"
+                dense_cpu, cpu_ratio = f"{d_arr['cpu']:.1f}", f"{d_arr['cpu'] / arr['cpu']:.1f}"
                 equal = f"{percent(same, n, 4)} ({n - same} differ)"
             print(
                 f"| {sc['name']} | {n_r * n_beta:,} | {frac:.2f} | {levels} | {lists} "
-                f"| {sec:.1f} | {dense_s} | {ratio} | {equal} | {verify} |",
+                f"| {sec:.1f} | {dense_s} | {ratio} | {arr['cpu']:.1f} | {dense_cpu} "
+                f"| {cpu_ratio} | {equal} | {verify} |",
                 flush=True,
             )
             if args.barriers:
@@ -245,7 +260,10 @@ def cluster_main(args, n_r: int, n_beta: int) -> int:
                 same = np.array_equal(b_arr["regime"], arr["regime"]) and np.array_equal(
                     b_arr["simulated"], arr["simulated"]
                 )
-                print(f"| {sc['name']}, waves | | | | | {b_sec:.1f} | | | same map: {same} | |")
+                print(
+                    f"| {sc['name']}, waves | | | | | {b_sec:.1f} | | | {b_arr['cpu']:.1f} "
+                    f"| | | same map: {same} | |"
+                )
     return 0
 
 
