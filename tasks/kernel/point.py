@@ -21,6 +21,7 @@ from tasks.kernel.context import _context
 from tasks.kernel.creep import _asymptotic_no_motion, _creep_limit, creep_settled, creep_threshold
 from tasks.kernel.cycle import _advance, _cycle, _max_abs, _max_abs_diff
 from tasks.kernel.damping import is_damped, linear_amplitude_damped
+from tasks.kernel.design import DESIGN_SCALARS, point_design
 from tasks.kernel.layout import (
     CTX_BETA,
     CTX_F_R2,
@@ -45,6 +46,7 @@ from tasks.kernel.layout import (
     OUT_REGIME,
     OUT_STICK,
     OUT_STOPS,
+    REC_X,
     ST_DMAX,
     ST_DMIN,
     ST_EVENTS,
@@ -427,7 +429,16 @@ def _seeds_next(out):
 
 @njit(cache=True)
 def run_points(r, beta, scene, settings):
-    """Classify every point ``(r[i], beta[i])``.
+    """Classify every point ``(r[i], beta[i])`` (:func:`run_points_design` without
+    the design pass). Returns ``(out, final)``."""
+    out, final, _ = run_points_design(r, beta, scene, settings, 0)
+    return out, final
+
+
+@njit(cache=True)
+def run_points_design(r, beta, scene, settings, samples):
+    """Classify every point ``(r[i], beta[i])``, and with ``samples > 0`` compute the
+    design quantities of its orbit.
 
     With ``settings[12]`` (``warm``, :mod:`tasks.fidelity`) a point first tries a warm start
     (:func:`warm_point`) from the orbit of the last point before it that
@@ -443,12 +454,20 @@ def run_points(r, beta, scene, settings):
     warm start's periods are counted in ``cycles``; ``initial_condition`` stays
     the held start, the reference the steady state is the limit of.
 
-    Returns ``(out, final)``: ``out`` is ``(n_points, N_OUT)`` (columns
-    ``OUT_*``), ``final`` the last section state and phase of each point.
+    The design quantities (:func:`tasks.kernel.design.orbit_design_recorded`,
+    ``samples`` per cycle at least) are computed from the records of the orbit
+    check (:func:`tasks.kernel.orbit._check_orbit`): the orbit is replayed once
+    for both.
+
+    Returns ``(out, final, design)``: ``out`` is ``(n_points, N_OUT)`` (columns
+    ``OUT_*``), ``final`` the last section state and phase of each point,
+    ``design`` the ``(n_points, 2 n + 3)`` design quantities (NaN where the point
+    has no steady state; no rows when ``samples`` is 0).
     """
     n = scene[0].shape[0]
     out = np.empty((r.shape[0], N_OUT))
     final = np.empty((r.shape[0], 2 * n + 2))
+    design = np.full((r.shape[0] if samples > 0 else 0, 2 * n + DESIGN_SCALARS), np.nan)
     warm = settings[12]
     phase_rate = math.sqrt(scene[5][-1])  # the fastest sliding mode: Omega = sqrt(lambda) / r
     seeded = False
@@ -462,18 +481,24 @@ def run_points(r, beta, scene, settings):
         near = drift <= WARM_PHASE and abs(beta[i] - seed_beta) <= WARM_STEP * max(
             beta[i], seed_beta
         )
+        rec = np.zeros((0, REC_X + 2 * n))
+        nr = 0
         if warm and seeded and near:
             accepted, spent = warm_point(r[i], beta[i], scene, settings, out[i], final[i], seed)
             if accepted:
-                _check_orbit(r[i], beta[i], scene, settings, out[i], final[i])
+                rec, nr = _check_orbit(r[i], beta[i], scene, settings, out[i], final[i])
                 accepted = out[i, OUT_CONVERGED] == 1.0
         if not accepted:
             simulate_point(r[i], beta[i], scene, settings, out[i], final[i])
-            _check_orbit(r[i], beta[i], scene, settings, out[i], final[i])
+            rec, nr = _check_orbit(r[i], beta[i], scene, settings, out[i], final[i])
             out[i, OUT_CYCLES] += spent
+        if samples > 0:
+            point_design(
+                r[i], beta[i], scene, settings, out[i], final[i], samples, design[i], rec, nr
+            )
         if warm and _seeds_next(out[i]):
             seed[:] = final[i]
             seed_r = r[i]
             seed_beta = beta[i]
             seeded = True
-    return out, final
+    return out, final, design
