@@ -85,6 +85,11 @@ WARM_NEWTON = 6
 # moves too far between the two points for a few Newton steps to follow it).
 WARM_STEP = 0.05
 WARM_PHASE = 0.3
+# One early shot (before shooting_after) once this many cycles (and min_cycles)
+# have run and the event pattern (chart, stops, reversals) has repeated this many
+# times in a row.
+EARLY_SHOT = 3
+EARLY_PATTERN = 2
 
 
 @njit(cache=True)
@@ -194,6 +199,8 @@ def simulate_point(r, beta, scene, settings, out, final):
     run_start_scale = 0.0
     chart_flips = 0
     moves = 0
+    pattern_run = 0
+    early_tried = False
     while cycles < max_cycles:
         X_new, mode_new, stick_start = _cycle(X, mode, stick_start, stats, ctx, work, theta)
         cycles += 1
@@ -284,10 +291,28 @@ def simulate_point(r, beta, scene, settings, out, final):
         ):
             _undetermined(out, UNBOUNDED, cycles, ic_used)
             return
+        if (
+            _same_chart(mode, mode_prev)
+            and stats[ST_STOPS] == stats_prev[ST_STOPS]
+            and stats[ST_REVERSALS] == stats_prev[ST_REVERSALS]
+        ):
+            pattern_run += 1
+        else:
+            pattern_run = 0
         for i in range(N_STATS):
             stats_prev[i] = stats[i]
         diff_prev = diff
-        shoot_now = shooting and cycles >= next_shot
+        # one early shot once the event pattern has repeated (cheap: the Jacobian
+        # and the Newton steps follow the recorded events, shooting.py)
+        early = (
+            shooting
+            and not early_tried
+            and cycles >= max(EARLY_SHOT, min_cycles)
+            and pattern_run >= EARLY_PATTERN
+            and cycles < next_shot
+        )
+        early_tried = early_tried or early
+        shoot_now = shooting and (cycles >= next_shot or early)
         if (shoot_now or chart_flips >= 2) and moves < 8:
             # The section falls near an event (the phase there flips between
             # cycles): move it to the middle of the longest phase of the last
@@ -313,7 +338,8 @@ def simulate_point(r, beta, scene, settings, out, final):
                 chart_flips = 0
                 unit_ratio_run = 0
         if shoot_now:
-            next_shot = 2 * next_shot
+            if not early:
+                next_shot = 2 * next_shot
             ok, Xs, used = _shoot(X, mode, stats, ctx, work, section_rtol, ref, 20, theta)
             cycles += used
             if ok:
@@ -323,6 +349,8 @@ def simulate_point(r, beta, scene, settings, out, final):
                 _finish(out, stats, stats_prev, 1, cycles, ic_used)
                 _creep_limit(out, slip_tol)
                 return
+            if early:  # a failed early shot changes nothing of the schedule
+                continue
             shots_failed += 1
             if shots_failed in (2, 4, 6):  # a slow point: full Newton from here
                 ok, Xs, mode_s, theta_s, used = settle_at_phases(

@@ -57,6 +57,13 @@ from tasks.kernel.starts import start_phase
 # Rows of the event record a shooting period keeps (:func:`_period_recorded`); a
 # period with more events differences its Jacobian columns over full periods.
 REC_ROWS = 512
+# How far (relative to its phase) a recorded event may move in a followed period:
+# for a difference column (:func:`_fd_jacobian`) and for a Newton step on the
+# followed map (:func:`_follow_newton`, verified by a full period after).
+FD_REACH = 1e-3
+STEP_REACH = 0.1
+# Newton steps on the followed map between two full periods of :func:`_shoot`.
+FOLLOW_NEWTON = 6
 # Sections a slow point's Newton settle tries (:func:`settle_at_phases`).
 SETTLE_PHASES = 4
 SETTLE_CYCLES = 150
@@ -153,7 +160,7 @@ def _records_usable(rec, nr):
 
 
 @njit(cache=True)
-def _follow_records(X, mode, rec, nr, ctx, work, theta, out):
+def _follow_records(X, mode, rec, nr, ctx, work, theta, out, reach):
     """The period from a start near the recorded one, with the recorded event pattern.
 
     Each phase of the record (:func:`_period_recorded`) is started from the state
@@ -165,7 +172,7 @@ def _follow_records(X, mode, rec, nr, ctx, work, theta, out):
     event instead of a bracket scan. Writes the end state into ``out``; returns
     False (``out`` undefined) where the pattern may not hold: a different starting
     phase, an event time that Newton's method does not settle or that moves by more
-    than ``1e-3`` of its phase or beyond the section.
+    than ``reach`` times its phase (or beyond the section).
     """
     n = X.shape[0] // 2
     seg_slip = ctx[CTX_SEG_SLIP]
@@ -232,7 +239,9 @@ def _follow_records(X, mode, rec, nr, ctx, work, theta, out):
                 if abs(dt) <= 1e-15 * (1.0 + abs(t)):
                     settled = True
                     break
-            if not settled or not (abs(t - (rec[j + 1, REC_TAU] - tau)) <= 1e-3 * max(t_rec, 1e-3)):
+            if not settled or not (
+                abs(t - (rec[j + 1, REC_TAU] - tau)) <= reach * max(t_rec, 1e-3)
+            ):
                 return False
             if not (t > 0.0 and tau + t < tau_end):
                 return False
@@ -274,7 +283,8 @@ def _fd_jacobian(y0, y1, mode, ctx, work, scale, J, theta, rec, nr):
     y1f = y1
     follow = _records_usable(rec, nr)
     if follow:
-        follow = _follow_records(_expand(y0, mode, n, w, T), mode, rec, nr, ctx, work, theta, Pk)
+        X0 = _expand(y0, mode, n, w, T)
+        follow = _follow_records(X0, mode, rec, nr, ctx, work, theta, Pk, FD_REACH)
         if follow:
             y1f = _reduce(Pk, mode, b, w, proj)
     used = 0
@@ -283,7 +293,7 @@ def _fd_jacobian(y0, y1, mode, ctx, work, scale, J, theta, rec, nr):
         yp = y0.copy()
         yp[k] += hk
         Xp = _expand(yp, mode, n, w, T)
-        if follow and _follow_records(Xp, mode, rec, nr, ctx, work, theta, Pk):
+        if follow and _follow_records(Xp, mode, rec, nr, ctx, work, theta, Pk, FD_REACH):
             yk = _reduce(Pk, mode, b, w, proj)
             base = y1f
         else:
@@ -297,6 +307,60 @@ def _fd_jacobian(y0, y1, mode, ctx, work, scale, J, theta, rec, nr):
             J[i, k] = (yk[i] - base[i]) / hk
         J[k, k] -= 1.0
     return used
+
+
+@njit(cache=True)
+def _follow_newton(y0, R0, J, mode, rec, nr, ctx, work, theta, target, scale):
+    """Newton's method with Broyden updates of ``J`` on the followed Poincare map.
+
+    The map is the current period's event pattern followed from nearby starts
+    (:func:`_follow_records`, events moving by up to ``STEP_REACH`` of their
+    phase): no bracket scan, so a step costs a few evaluations per event. At most
+    ``FOLLOW_NEWTON`` steps, each of which must reduce the residual, until it is
+    below ``target``. The result is only a candidate: :func:`_shoot` verifies it on
+    a full period (a new event would change the map there, and the residual).
+    Returns ``(y, moved)``; ``J`` is updated in place.
+    """
+    n = ctx[CTX_P].shape[0]
+    b = ctx[CTX_B]
+    w = ctx[CTX_W]
+    T = ctx[CTX_T]
+    proj = ctx[CTX_PROJ]
+    dim = y0.shape[0]
+    yf = y0.copy()
+    Rf = R0.copy()
+    res_f = _max_abs(Rf)
+    Pf = np.empty(2 * n)
+    moved = False
+    for _ in range(FOLLOW_NEWTON):
+        try:
+            step = np.linalg.solve(J, -Rf)
+        except Exception:  # singular
+            break
+        if not np.all(np.isfinite(step)) or _max_abs(step) > 10.0 * scale:
+            break
+        yn = yf + step
+        if not _follow_records(
+            _expand(yn, mode, n, w, T), mode, rec, nr, ctx, work, theta, Pf, STEP_REACH
+        ):
+            break
+        Rn = _reduce(Pf, mode, b, w, proj) - yn
+        rn = _max_abs(Rn)
+        if not rn < res_f:
+            break
+        ss = _dot(step, step)
+        if ss > 0.0:  # Broyden: J += ((Rn - Rf) - J s) s^T / (s . s)
+            u = (Rn - Rf) - J @ step
+            for i in range(dim):
+                for k in range(dim):
+                    J[i, k] += u[i] * step[k] / ss
+        yf = yn
+        Rf = Rn
+        res_f = rn
+        moved = True
+        if res_f <= target:
+            break
+    return yf, moved
 
 
 @njit(cache=True)
@@ -353,6 +417,40 @@ def _shoot(X0, mode, stats, ctx, work, rtol, floor, max_newton, theta):
                 dP[i, i] += 1.0
             radius = np.max(np.abs(np.linalg.eigvals(dP.astype(np.complex128))))
             return radius <= 1.0 + 1e-6, X0, cycles
+        if _records_usable(rec, rec_n[0]):
+            # Newton on the followed map (no bracket scans), then one full period
+            # from its candidate: the new iterate if it reduced the residual
+            yf, moved = _follow_newton(
+                y0,
+                R,
+                J,
+                mode,
+                rec,
+                rec_n[0],
+                ctx,
+                work,
+                theta,
+                0.01 * rtol * max(scale, floor),
+                scale,
+            )
+            if moved:
+                Xn = _expand(yf, mode, n, w, T)
+                X1n, mn = _period_recorded(
+                    Xn, _phase_of(Xn, mode, b), stats, ctx, work, theta, rec_t, rec_tn
+                )
+                cycles += 1
+                ok = _same_chart(mn, mode) and stats[ST_STATUS] == STATUS_OK
+                if ok and stats[ST_FOREVER] == 0.0:
+                    y1n = _reduce(X1n, mode, b, w, proj)
+                    if _max_abs(y1n - yf) < res:
+                        y0 = yf
+                        y1 = y1n
+                        X0 = Xn
+                        X1 = X1n
+                        rec, rec_t = rec_t, rec
+                        rec_n, rec_tn = rec_tn, rec_n
+                        fresh = False
+                        continue
         try:
             step = np.linalg.solve(J, -R)
         except Exception:  # singular: no isolated fixed point (e.g. resonance)
