@@ -4,6 +4,7 @@ Run from the repository root::
 
     .venv/bin/python benchmarks/bench_warm.py            # 250 x 100 panels, ~4 min on 2 cores
     .venv/bin/python benchmarks/bench_warm.py --quick    # 100 x 40 panels, ~1 min
+    .venv/bin/python benchmarks/bench_warm.py --quick --code ../main  # another checkout
 
 In one process, on a 250 x 100 (r, beta) panel of Fig. 4 (2DOF, ground contact
 on m_1, gamma = 1, kappa = 0.5) and of Fig. 10b (5DOF, ground contact on m_2):
@@ -32,7 +33,10 @@ from pathlib import Path
 import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
+# --code DIR: measure another checkout's tasks/ (e.g. main before a change)
+_CODE = sys.argv[sys.argv.index("--code") + 1] if "--code" in sys.argv else str(REPO)
+sys.path.insert(0, _CODE)
+sys.path.insert(1, str(REPO))
 
 from study.bench import machine  # noqa: E402
 from tasks import Scene, classify  # noqa: E402
@@ -61,6 +65,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="100 x 40 panels, 20 paper points")
     parser.add_argument("--paper-points", type=int, default=None, help="paper sample per panel")
+    parser.add_argument("--code", default=None, help="import tasks from this checkout instead")
     args = parser.parse_args()
     n_r, n_beta = (100, 40) if args.quick else (250, 100)
     n_paper = args.paper_points or (20 if args.quick else 40)

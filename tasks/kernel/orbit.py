@@ -31,6 +31,7 @@ from tasks.kernel.layout import (
     CTX_SEG_STICK,
     CTX_TOL,
     CTX_W,
+    EV_END,
     EV_SECTION,
     EVALS,
     KIND,
@@ -201,13 +202,18 @@ def records_hold(rec, nr, ctx, work):
 
 
 @njit(cache=True)
-def _check_orbit(r, beta, scene, settings, out, final):
+def _check_orbit(r, beta, scene, settings, out, final, keep, kept):
     """Flag a converged point whose orbit fails :func:`orbit_holds` (never report it).
 
     The point becomes ``NUMERICAL_FAILURE`` (an event the search could not
     locate), or ``WORK_LIMIT`` if the check ran out of budget (it has a budget
     of its own, ``max_work``). No-motion points are certified by :func:`never_unsticks` and
     continuous points at beta = 0 are linear: neither is re-checked.
+
+    ``keep`` may hold ``kept`` rows: the records of a period-1 orbit's verified
+    period (:func:`tasks.kernel.shooting._shoot`); when they start from exactly
+    the state, phase and section of ``final``, they are the replay (the same
+    events, bit for bit) and are checked without replaying it again.
 
     Returns ``(rec, n_records)``: the checked orbit's records (:func:`record_orbit`,
     reused by the design pass), ``n_records`` 0 where nothing was checked or the
@@ -220,7 +226,17 @@ def _check_orbit(r, beta, scene, settings, out, final):
     X = final[: 2 * n].copy()
     mode = int(final[2 * n])
     theta = final[2 * n + 1]
-    rec, nr, status = record_orbit(X, mode, theta, int(out[OUT_PERIOD]), ctx, work)
+    period = int(out[OUT_PERIOD])
+    same = period == 1 and kept > 1 and keep[kept - 1, REC_KIND] == EV_END
+    same = same and keep[0, REC_TAU] == theta and int(keep[0, REC_MODE]) == mode
+    for i in range(2 * n):
+        same = same and keep[0, REC_X + i] == X[i]
+    if same:
+        rec = keep[:kept].copy()
+        nr = kept
+        status = STATUS_OK
+    else:
+        rec, nr, status = record_orbit(X, mode, theta, period, ctx, work)
     if status != STATUS_OK:
         holds = -1 if status == WORK_LIMIT else 0
     else:

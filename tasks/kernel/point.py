@@ -62,7 +62,13 @@ from tasks.kernel.layout import (
 )
 from tasks.kernel.orbit import _check_orbit
 from tasks.kernel.outcome import _finish, _no_motion_by_margin, _undetermined
-from tasks.kernel.shooting import SETTLE_PHASES, _same_chart, _shoot, settle_at_phases
+from tasks.kernel.shooting import (
+    REC_ROWS,
+    SETTLE_PHASES,
+    _same_chart,
+    _shoot,
+    settle_at_phases,
+)
 from tasks.kernel.starts import _held_response, held_margin, start_phase
 from tasks.regimes import (
     CONTINUOUS,
@@ -128,9 +134,11 @@ def _resonant_growth(seg_slip, f_r2, beta):
 
 
 @njit(cache=True)
-def simulate_point(r, beta, scene, settings, out, final):
+def simulate_point(r, beta, scene, settings, out, final, keep, kept):
     """Classify one (r, beta) point; writes the fields into ``out`` and the last
-    section state and phase ``(x, x', mode)`` into ``final``."""
+    section state and phase ``(x, x', mode)`` into ``final``. A point settled by
+    shooting leaves its verified period's records in ``keep`` (``kept[0]`` rows,
+    else 0: :func:`tasks.kernel.shooting._shoot`)."""
     (
         _event_tol,
         _step_fraction,
@@ -148,6 +156,7 @@ def simulate_point(r, beta, scene, settings, out, final):
     ) = settings
     ctx, work, X, mode, ic_used = _context(r, beta, scene, settings)
     out[OUT_ASYMPTOTIC] = 0.0
+    kept[0] = 0
     slip_tol = creep_threshold(ctx, beta)
     small_run = 0
     quiet_run = 0
@@ -340,7 +349,9 @@ def simulate_point(r, beta, scene, settings, out, final):
         if shoot_now:
             if not early:
                 next_shot = 2 * next_shot
-            ok, Xs, used = _shoot(X, mode, stats, ctx, work, section_rtol, ref, 20, theta)
+            ok, Xs, used = _shoot(
+                X, mode, stats, ctx, work, section_rtol, ref, 20, theta, keep, kept
+            )
             cycles += used
             if ok:
                 final[: 2 * n] = Xs
@@ -394,7 +405,7 @@ def simulate_point(r, beta, scene, settings, out, final):
 
 
 @njit(cache=True)
-def warm_point(r, beta, scene, settings, out, final, seed):
+def warm_point(r, beta, scene, settings, out, final, seed, keep, kept):
     """Steady state of a point by shooting from a neighbour's converged orbit (a warm start).
 
     ``seed`` is the neighbour's row of :func:`run_points`' ``final`` (section
@@ -411,7 +422,8 @@ def warm_point(r, beta, scene, settings, out, final, seed):
     resonant growth.
 
     Returns ``(accepted, cycles)``; when not accepted, ``out`` and ``final``
-    are left to :func:`simulate_point`.
+    are left to :func:`simulate_point`. ``keep``, ``kept``: as for
+    :func:`simulate_point`.
     """
     section_rtol = settings[2]
     shooting = settings[5]
@@ -432,7 +444,10 @@ def warm_point(r, beta, scene, settings, out, final, seed):
     static = _max_abs(np.linalg.solve(ctx[CTX_K], ctx[CTX_P]))
     ref = max(_max_abs(X_held), static, _max_abs(X0), 1e-300)
     stats = np.zeros(N_STATS)
-    ok, Xs, used = _shoot(X0, mode0, stats, ctx, work, section_rtol, ref, WARM_NEWTON, theta)
+    kept[0] = 0
+    ok, Xs, used = _shoot(
+        X0, mode0, stats, ctx, work, section_rtol, ref, WARM_NEWTON, theta, keep, kept
+    )
     if not ok:
         return False, used
     out[OUT_ASYMPTOTIC] = 0.0
@@ -497,6 +512,8 @@ def run_points_design(r, beta, scene, settings, samples):
     final = np.empty((r.shape[0], 2 * n + 2))
     design = np.full((r.shape[0] if samples > 0 else 0, 2 * n + DESIGN_SCALARS), np.nan)
     warm = settings[12]
+    keep = np.empty((REC_ROWS, REC_X + 2 * n))  # a shot's verified period, for the check
+    kept = np.zeros(1, dtype=np.int64)
     phase_rate = math.sqrt(scene[5][-1])  # the fastest sliding mode: Omega = sqrt(lambda) / r
     seeded = False
     seed_r = 0.0
@@ -512,13 +529,17 @@ def run_points_design(r, beta, scene, settings, samples):
         rec = np.zeros((0, REC_X + 2 * n))
         nr = 0
         if warm and seeded and near:
-            accepted, spent = warm_point(r[i], beta[i], scene, settings, out[i], final[i], seed)
+            accepted, spent = warm_point(
+                r[i], beta[i], scene, settings, out[i], final[i], seed, keep, kept
+            )
             if accepted:
-                rec, nr = _check_orbit(r[i], beta[i], scene, settings, out[i], final[i])
+                rec, nr = _check_orbit(
+                    r[i], beta[i], scene, settings, out[i], final[i], keep, kept[0]
+                )
                 accepted = out[i, OUT_CONVERGED] == 1.0
         if not accepted:
-            simulate_point(r[i], beta[i], scene, settings, out[i], final[i])
-            rec, nr = _check_orbit(r[i], beta[i], scene, settings, out[i], final[i])
+            simulate_point(r[i], beta[i], scene, settings, out[i], final[i], keep, kept)
+            rec, nr = _check_orbit(r[i], beta[i], scene, settings, out[i], final[i], keep, kept[0])
             out[i, OUT_CYCLES] += spent
         if samples > 0:
             point_design(

@@ -364,7 +364,7 @@ def _follow_newton(y0, R0, J, mode, rec, nr, ctx, work, theta, target, scale):
 
 
 @njit(cache=True)
-def _shoot(X0, mode, stats, ctx, work, rtol, floor, max_newton, theta):
+def _shoot(X0, mode, stats, ctx, work, rtol, floor, max_newton, theta, keep, kept):
     """Newton's method on the Poincare map ``P(X) - X = 0`` (shooting).
 
     Works in the coordinates of the phase the section falls in
@@ -377,7 +377,8 @@ def _shoot(X0, mode, stats, ctx, work, rtol, floor, max_newton, theta):
     1 + 1e-6): shooting must find the attractor, not any periodic orbit.
 
     Returns ``(success, X, cycles_used)``; on success ``stats`` holds the
-    statistics of the verified period ``X -> P(X)``.
+    statistics of the verified period ``X -> P(X)`` and its recorded events are
+    copied into ``keep`` (``kept[0]`` rows, if they fit; else ``kept`` is left).
     """
     n = X0.shape[0] // 2
     b = ctx[CTX_B]
@@ -416,7 +417,12 @@ def _shoot(X0, mode, stats, ctx, work, rtol, floor, max_newton, theta):
             for i in range(dim):
                 dP[i, i] += 1.0
             radius = np.max(np.abs(np.linalg.eigvals(dP.astype(np.complex128))))
-            return radius <= 1.0 + 1e-6, X0, cycles
+            stable = radius <= 1.0 + 1e-6
+            nr = rec_n[0]
+            if stable and nr < rec.shape[0] and nr <= keep.shape[0]:
+                keep[:nr] = rec[:nr]  # the verified period's events, for the orbit check
+                kept[0] = nr
+            return stable, X0, cycles
         if _records_usable(rec, rec_n[0]):
             # Newton on the followed map (no bracket scans), then one full period
             # from its candidate: the new iterate if it reduced the residual
