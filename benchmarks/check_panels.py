@@ -3,19 +3,21 @@
 Run from the repository root::
 
     .venv/bin/python benchmarks/check_panels.py save before.npz [--size 100x40] [--code DIR]
+        [--start rest]
     .venv/bin/python benchmarks/check_panels.py save after.npz [--size 100x40]
     .venv/bin/python benchmarks/check_panels.py compare before.npz after.npz
 
-``save`` classifies every scene of ``examples/fig*.toml`` (23 panels; held start,
-preset ``balanced``, design quantities on) on a grid of ``--size`` points over the
-panel's r and beta ranges (default: the example's own 250 x 100) and saves every
-field with the CPU seconds per panel; ``--code DIR`` imports ``tasks`` from another
-checkout (e.g. main before a change). ``compare`` prints, per panel, the points
-whose regime or stops differ (they must be none), the largest difference of
-each other field relative to its scale on the panel (``slip_amplitude``,
-``amplitude``, ``contact_force_amplitude``, ``dissipation``: at most about the
-steady-state tolerance), the mean cycles per point by regime class and the CPU
-time, before and after.
+``save`` classifies every scene of ``examples/fig*.toml`` (23 panels; held
+start or ``--start rest``, preset ``balanced``, design quantities on) on a grid
+of ``--size`` points over the panel's r and beta ranges (default: the
+example's own 250 x 100) and saves every field with the CPU seconds per panel;
+``--code DIR`` imports ``tasks`` from another checkout (e.g. main before a
+change). ``compare`` prints, per panel, the points whose regime or stops differ
+(they must be none), the largest difference of each other field relative to
+its scale on the panel (``slip_amplitude``, ``stick_fraction``, ``amplitude``,
+``contact_force_amplitude``, ``dissipation``: at most about the steady-state
+tolerance), the mean cycles per point by regime class and the CPU time, before
+and after.
 """
 
 from __future__ import annotations
@@ -67,14 +69,14 @@ def panels(size: tuple[int, int] | None):
             yield f"{path.stem}/{spec.name}", spec.base_scene, r, beta
 
 
-def save(output: Path, size: tuple[int, int] | None, only: str | None) -> None:
+def save(output: Path, size: tuple[int, int] | None, only: str | None, start: str) -> None:
     classify(Scene("ground", dof=2), [0.5, 1.5], [0.1, 0.6])  # compile / load the cache
     arrays = {}
     for name, scene, r, beta in panels(size):
         if only and only not in name:
             continue
         t0 = time.process_time()
-        res = classify(scene, r, beta)
+        res = classify(scene, r, beta, initial_condition=start)
         cpu = time.process_time() - t0
         for field in FIELDS:
             arrays[f"{name}|{field}"] = np.asarray(getattr(res, field))
@@ -141,6 +143,7 @@ def main() -> None:
     s.add_argument("output", type=Path)
     s.add_argument("--size", default=None, help="N_RxN_BETA, e.g. 100x40 (default: the example's)")
     s.add_argument("--only", default=None, help="only panels whose name contains this")
+    s.add_argument("--start", default="held", help="initial condition: held (default) or rest")
     s.add_argument("--code", default=None, help="import tasks from this checkout instead")
     c = sub.add_parser("compare")
     c.add_argument("before", type=Path)
@@ -148,7 +151,7 @@ def main() -> None:
     args = ap.parse_args()
     if args.cmd == "save":
         size = tuple(int(v) for v in args.size.split("x")) if args.size else None
-        save(args.output, size, args.only)
+        save(args.output, size, args.only, args.start)
     else:
         sys.exit(compare(args.before, args.after))
 
