@@ -312,7 +312,8 @@ def simulate_point(r, beta, scene, settings, out, final, keep, kept):
             stats_prev[i] = stats[i]
         diff_prev = diff
         # one early shot once the event pattern has repeated (cheap: the Jacobian
-        # and the Newton steps follow the recorded events, shooting.py)
+        # and the Newton steps follow the recorded events, shooting.py), from the
+        # current section
         early = (
             shooting
             and not early_tried
@@ -322,7 +323,8 @@ def simulate_point(r, beta, scene, settings, out, final, keep, kept):
         )
         early_tried = early_tried or early
         shoot_now = shooting and (cycles >= next_shot or early)
-        if (shoot_now or chart_flips >= 2) and moves < 8:
+        # (an early shot keeps the section: a failed one leaves the iteration as it was)
+        if ((shoot_now and not early) or chart_flips >= 2) and moves < 8:
             # The section falls near an event (the phase there flips between
             # cycles): move it to the middle of the longest phase of the last
             # period, where the Poincare map is smooth, and restart the history.
