@@ -4,15 +4,18 @@ Run from the repository root::
 
     .venv/bin/python benchmarks/bench_warm.py            # 250 x 100 panels, ~4 min on 2 cores
     .venv/bin/python benchmarks/bench_warm.py --quick    # 100 x 40 panels, ~1 min
+    .venv/bin/python benchmarks/bench_warm.py --quick --code ../main  # another checkout
 
 In one process, on a 250 x 100 (r, beta) panel of Fig. 4 (2DOF, ground contact
 on m_1, gamma = 1, kappa = 0.5) and of Fig. 10b (5DOF, ground contact on m_2):
 ``tasks.classify`` (balanced) with every point from the held start (the
 default, ``warm=False``) and with warm starts (``warm=True``), each with and
 without the design pass (``design=False``), one call per panel,
-compiled beforehand. The paper's method (``tasks.baseline.paper_method``: RK45 +
-events, 100 cycles from rest, scipy) runs on a seeded sample of the same
-points; the ratio is its mean time per point over each configuration's.
+compiled beforehand; then the points of each regime class (of the default run)
+alone, with and without the design pass, for the cost and cycles per class.
+The paper's method (``tasks.baseline.paper_method``: RK45 + events, 100
+cycles from rest, scipy) runs on a seeded sample of the same points; the
+ratio is its mean time per point over each configuration's.
 Labels: the warm and cold panels must agree point for point (regime and
 stops); the paper's labels are compared on the sample (it integrates a fixed
 100 cycles, so slow transients can differ). Times are CPU times of this
@@ -30,7 +33,10 @@ from pathlib import Path
 import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
+# --code DIR: measure another checkout's tasks/ (e.g. main before a change)
+_CODE = sys.argv[sys.argv.index("--code") + 1] if "--code" in sys.argv else str(REPO)
+sys.path.insert(0, _CODE)
+sys.path.insert(1, str(REPO))
 
 from study.bench import machine  # noqa: E402
 from tasks import Scene, classify  # noqa: E402
@@ -47,6 +53,7 @@ CONFIGS = {
     "warm, no design": {"warm": True, "design": False},
 }
 SEED = 19
+CLASSES = {0: "no motion", 1: "stick-slip", 2: "continuous"}
 
 
 def table(header: list[str], rows: list[list[object]]) -> str:
@@ -58,13 +65,14 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="100 x 40 panels, 20 paper points")
     parser.add_argument("--paper-points", type=int, default=None, help="paper sample per panel")
+    parser.add_argument("--code", default=None, help="import tasks from this checkout instead")
     args = parser.parse_args()
     n_r, n_beta = (100, 40) if args.quick else (250, 100)
     n_paper = args.paper_points or (20 if args.quick else 40)
     print("machine: " + "; ".join(f"{k} {v}" for k, v in machine().items()))
     classify(Scene("ground", 2), [0.5, 1.5], [0.1, 0.6], design=False)  # compile / load
     classify(Scene("ground", 2), [0.5, 1.5], [0.1, 0.6])
-    timing_rows, label_rows = [], []
+    timing_rows, label_rows, class_rows = [], [], []
     for title, (scene, beta_max) in PANELS.items():
         r, beta = np.meshgrid(np.linspace(0.02, 2.5, n_r), np.linspace(0.0, beta_max, n_beta))
         results, per_point = {}, {}
@@ -78,6 +86,20 @@ def main() -> None:
         paper = np.array([paper_method(scene, r.flat[i], beta.flat[i])[0] for i in pick])
         paper_s = (time.process_time() - t0) / n_paper
         moving = cold.regime > 0
+        for code, klass in CLASSES.items():  # each regime class alone, from the held start
+            m = cold.regime == code
+            if not m.any():
+                continue
+            cost = []
+            for kw in ({}, {"design": False}):
+                t0 = time.process_time()
+                classify(scene, r[m], beta[m], **kw)
+                cost.append((time.process_time() - t0) / m.sum())
+            class_rows.append(
+                [title, klass, int(m.sum()), f"{cold.cycles[m].mean():.1f}"]
+                + [f"{c * 1e6:.0f}" for c in cost]
+                + [f"{cost[0] * 1e6 / max(cold.cycles[m].mean(), 1.0):.1f}"]
+            )
         timing_rows.append(
             [title, f"{n_r} x {n_beta}"]
             + [f"{per_point[n] * 1e3:.3f}" for n in CONFIGS]
@@ -102,6 +124,14 @@ def main() -> None:
             ["panel", "points", *[f"{n} ms" for n in names], "paper CPU s/pt (n)"]
             + [f"paper / {n}" for n in names],
             timing_rows,
+        )
+    )
+    print("\nper regime class (cold, each class's points in one call): cycles and CPU us per point")
+    print(
+        table(
+            ["panel", "class", "points", "cycles", "us/pt (design)", "us/pt (no design)"]
+            + ["us/cycle (design)"],
+            class_rows,
         )
     )
     print("\nlabels: warm vs cold on the whole panel, and the paper's method on its sample")

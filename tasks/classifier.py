@@ -146,12 +146,10 @@ def classify(
     codes = start_codes(resolved)
     first = settings_args(resolved, codes[0])
     numba_cache.announce_compile()  # one line on stderr before a first compile
-    out, final = kernel.run_points(flat_r, flat_beta, scene_args, first)
-    design = None
-    if resolved.design:  # design quantities of the first start's orbit
-        design, _ = kernel.orbit_designs(
-            flat_r, flat_beta, scene_args, first, out, final, kernel.DESIGN_SAMPLES
-        )
+    # the design quantities of the first start's orbit, on the orbit check's replay
+    samples = kernel.DESIGN_SAMPLES if resolved.design else 0
+    out, _, design = kernel.run_points_design(flat_r, flat_beta, scene_args, first, samples)
+    design = design if resolved.design else None
     others = [
         kernel.run_points(flat_r, flat_beta, scene_args, settings_args(resolved, c))[0]
         for c in codes[1:]

@@ -10,6 +10,8 @@ max_cycles         600     2000      5000     cycle budget before NOT_CONVERGED
 min_cycles         2       3         4        cycles simulated before testing convergence
 shooting           True    True      True     Newton on the Poincare map for slow points
 shooting_after     4       6         8        cycles of plain iteration before shooting
+                                               (one early shot after 3 once the event
+                                               pattern repeats, tasks.kernel.point)
 max_events         400     2000      8000     events per cycle before EVENT_LIMIT (raised
                                                to 8 Omega_max: a free mode of frequency
                                                Omega reverses the contact 2 Omega times)

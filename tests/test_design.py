@@ -102,3 +102,49 @@ def test_undetermined_points_have_no_design_quantities():
     res = classify(Scene("ground", 1), np.array([1.0]), np.array([0.5]))  # Den Hartog: unbounded
     assert res.regime[0] == regimes.UNBOUNDED
     assert np.isnan(res.amplitude).all() and np.isnan(res.dissipation).all()
+
+
+@pytest.mark.parametrize(
+    ("scene", "r"), [(Scene("ground", 2, 1, gamma=1.0, kappa=0.5), 0.6), (Scene("base", 3, 2), 1.4)]
+)
+def test_held_steady_state_design_in_closed_form_equals_its_replay(scene, r):
+    """A point stuck for ever from the held start gets its design quantities in closed
+    form; the same orbit replayed from the next period's section (tau = 2 pi, the same
+    state) goes through the sampled replay: both agree to 1e-12."""
+    from tasks import kernel
+    from tasks.classifier import scene_modes_cached, settings_args
+    from tasks.fidelity import resolve
+
+    args = scene_modes_cached(scene).kernel_args()
+    settings = settings_args(resolve("balanced"))
+    _, bm = boundaries(scene, np.array([r]), method="paper")
+    beta = 1.5 * float(bm[0])  # above the motion bound: stuck for ever from tau = 0
+    rr, bb = np.array([r]), np.array([beta])
+    out, final = kernel.run_points(rr, bb, args, settings)
+    assert out[0, kernel.OUT_REGIME] == regimes.NO_MOTION and out[0, kernel.OUT_CYCLES] == 1
+    closed = np.full(final.shape[1] + 1, np.nan)
+    replayed = closed.copy()
+    assert kernel.orbit_design(r, beta, args, settings, final[0], 1, 32, closed) == 0
+    shifted = final[0].copy()
+    shifted[-1] = 2.0 * np.pi
+    assert kernel.orbit_design(r, beta, args, settings, shifted, 1, 32, replayed) > 0
+    np.testing.assert_allclose(closed, replayed, rtol=1e-12, atol=1e-12 * np.abs(replayed).max())
+    assert closed[-2] == 0.0 and closed[-1] == 0.0  # no slip, no damping: no dissipation
+
+
+def test_design_on_the_orbit_checks_replay_equals_its_own_replay():
+    """run_points_design takes the design quantities from the orbit check's records;
+    orbit_designs replays every orbit itself: the same numbers, bit for bit."""
+    from tasks import kernel
+    from tasks.classifier import scene_modes_cached, settings_args
+    from tasks.fidelity import resolve
+
+    scene = Scene("ground", 2, 1, gamma=1.0, kappa=0.5)
+    r = np.array([0.3, 0.6, 0.9, 1.3, 1.9, 0.8])
+    beta = np.array([0.1, 0.5, 0.2, 0.6, 0.3, 0.0])
+    args = scene_modes_cached(scene).kernel_args()
+    settings = settings_args(resolve("balanced"))
+    out, final, design = kernel.run_points_design(r, beta, args, settings, kernel.DESIGN_SAMPLES)
+    assert set(out[:, kernel.OUT_REGIME]) >= {regimes.STICK_SLIP, regimes.CONTINUOUS}
+    again, _ = kernel.orbit_designs(r, beta, args, settings, out, final, kernel.DESIGN_SAMPLES)
+    np.testing.assert_array_equal(design, again)

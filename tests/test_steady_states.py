@@ -170,8 +170,10 @@ def test_slow_column_settles_from_another_section_phase():
     beta = np.array([0.6061, 0.7576])
     res = classify(scene, r, beta)
     assert np.all(res.regime == regimes.STICK_SLIP)
-    # settled by the last resort, once the 2000 cycles of balanced were spent
-    assert np.all((res.cycles > 2000) & (res.cycles <= 2000 + 4 * kernel.SETTLE_CYCLES))
+    # slow: settled after many hundred cycles, the second point by the last resort
+    # once the 2000 cycles of balanced were spent
+    assert np.all((res.cycles > 1000) & (res.cycles <= 2000 + 4 * kernel.SETTLE_CYCLES))
+    assert res.cycles[1] > 2000
     slow = classify(scene, r, beta, fidelity="exact", shooting=False, max_cycles=60000)
     assert np.all(slow.cycles > 5000)  # the plain iteration is slow here
     assert np.array_equal(slow.regime, res.regime)

@@ -30,11 +30,12 @@ Modules, one job each (dependencies point down the list):
 * :mod:`~tasks.kernel.creep`: the creep rule;
 * :mod:`~tasks.kernel.outcome`: writing a point's fields;
 * :mod:`~tasks.kernel.orbit`: the orbit invariant;
+* :mod:`~tasks.kernel.records`: recorded stretches of motion (:func:`trace_cycles`);
+* :mod:`~tasks.kernel.design`: amplitudes, contact force amplitude, dissipation;
 * :mod:`~tasks.kernel.point`: the steady-state search of a point from the held start
   (:func:`simulate_point`) or from a neighbour's orbit (:func:`warm_point`), and of
-  many (:func:`run_points`);
-* :mod:`~tasks.kernel.records`: recorded stretches of motion (:func:`trace_cycles`);
-* :mod:`~tasks.kernel.design`: amplitudes, contact force amplitude, dissipation.
+  many (:func:`run_points`, with the design pass on the orbit check's replay:
+  :func:`run_points_design`).
 
 Everything is compiled with numba (``cache=True``); with ``NUMBA_DISABLE_JIT=1``
 the same code runs as plain Python (slowly). numba's on-disk cache checks only
@@ -96,7 +97,7 @@ with numba_cache.kernel_cache():
         TWO_PI,
     )
     from tasks.kernel.orbit import ORBIT_RTOL, orbit_holds
-    from tasks.kernel.point import run_points, simulate_point, warm_point
+    from tasks.kernel.point import run_points, run_points_design, simulate_point, warm_point
     from tasks.kernel.propagation import derivative_bounds, evaluate, event_function
     from tasks.kernel.records import sample_states, trace_cycles
     from tasks.kernel.shooting import SETTLE_CYCLES, SETTLE_PHASES, newton_settle, settle_at_phases
@@ -156,6 +157,7 @@ __all__ = [
     "orbit_holds",
     "run_cycle",
     "run_points",
+    "run_points_design",
     "sample_states",
     "settle_at_phases",
     "simulate_point",

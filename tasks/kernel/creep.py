@@ -95,10 +95,15 @@ def creep_settled(X, ctx, theta):
 @njit(cache=True)
 def _creep_limit(out, slip_tol):
     """A converged stick-slip orbit whose slip is below the creep threshold is
-    no motion (reached asymptotically; the measured slip stays in ``out``)."""
+    no motion (reached asymptotically; the measured slip stays in ``out``). A
+    converged orbit stuck for its whole period that was found by iterating or
+    shooting (not certified stuck for ever in a cycle of the trajectory) ends a
+    creep too: no motion reached asymptotically."""
     if out[OUT_REGIME] == STICK_SLIP and out[OUT_AMP] < slip_tol:
         out[OUT_REGIME] = NO_MOTION
         out[OUT_STOPS] = 0.0
+        out[OUT_ASYMPTOTIC] = 1.0
+    elif out[OUT_REGIME] == NO_MOTION:
         out[OUT_ASYMPTOTIC] = 1.0
 
 

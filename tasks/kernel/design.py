@@ -30,12 +30,14 @@ from tasks.kernel.layout import (
     CTX_MAX_EVENTS,
     CTX_P,
     CTX_PHI,
+    CTX_PHI_S,
     CTX_PHI_S_T_GAMMA_S,
     CTX_PHI_T_GAMMA,
     CTX_PROJ,
     CTX_SC,
     CTX_SEG_SLIP,
     CTX_SEG_STICK,
+    CTX_T,
     CTX_W,
     DAMP,
     DAMPED,
@@ -54,6 +56,7 @@ from tasks.kernel.layout import (
 )
 from tasks.kernel.phases import _contact_force, _dot, _matvec, _start_stick
 from tasks.kernel.records import sample_states
+from tasks.kernel.starts import _held_response
 
 # Columns of :func:`orbit_designs`'s output, per point (n = number of masses):
 # [0, n) amplitude of the scene coordinate q_i (x_i; z_i = x_i - y for a base-fixed wall),
@@ -146,6 +149,14 @@ def _hermite_extremes(t0, t1, y0, y1, v0, v1, acc):
 
 @njit(cache=True)
 def orbit_design(r, beta, scene, settings, state, period, samples, dout):
+    """:func:`orbit_design_recorded` replaying the orbit itself; returns the number of samples."""
+    n = (state.shape[0] - 2) // 2
+    rec = np.zeros((0, REC_X + 2 * n))
+    return orbit_design_recorded(r, beta, scene, settings, state, period, samples, dout, rec, 0)
+
+
+@njit(cache=True)
+def orbit_design_recorded(r, beta, scene, settings, state, period, samples, dout, rec_in, nr_in):
     """Design quantities of the converged orbit that starts at the section ``state``.
 
     ``state`` is a row of :func:`run_points`' ``final`` (``x, x'``, phase, section
@@ -160,7 +171,9 @@ def orbit_design(r, beta, scene, settings, state, period, samples, dout):
     slip distance ``sum |delta (b . x)|`` over the slip phases, divided by
     ``period`` (units k_1 Y^2; docs/theory.md 2), and the viscous energy dissipated
     per excitation cycle (``int r x'^T C x' dtau`` over the orbit divided by
-    ``period``; 0 when undamped). Returns the number of samples.
+    ``period``; 0 when undamped). ``rec_in`` may hold the orbit's ``nr_in > 0``
+    records already (:func:`tasks.kernel.orbit.record_orbit`, the same replay):
+    then it is not replayed again. Returns the number of samples.
     """
     ctx, work = _context(r, beta, scene, settings)[:2]
     n = (state.shape[0] - 2) // 2
@@ -225,11 +238,14 @@ def orbit_design(r, beta, scene, settings, state, period, samples, dout):
         dout[2 * n + DESIGN_VISCOUS] = 0.0
         return 0
     theta = state[2 * n + 1]
+    if not damped and C.shape[0] != n and _held_design(ctx, state, period, c, dout):
+        return 0
     rows = 32 * period  # grown (and the orbit replayed) if the events do not fit
-    rec = np.zeros((0, REC_X + 2 * n))
+    rec = rec_in
     rec_n = np.zeros(1, dtype=np.int64)
+    rec_n[0] = nr_in
     stats = np.zeros(N_STATS)
-    while True:
+    while nr_in == 0:
         rec = np.empty((rows, REC_X + 2 * n))
         rec_n[0] = 0
         x = state[:n].copy()
@@ -359,6 +375,38 @@ def orbit_design(r, beta, scene, settings, state, period, samples, dout):
 
 
 @njit(cache=True)
+def _held_design(ctx, state, period, c, dout):
+    """Design quantities of the held steady state in closed form, if ``state`` is it.
+
+    The held steady state (:func:`tasks.kernel.starts._held_response`, undamped)
+    is ``x_h(tau) = x_h(0) cos tau`` with the contact stuck at zero relative
+    displacement, so its amplitudes are ``|x_h,i(0)|`` and ``|x_h,i(0) - c|``,
+    its contact force amplitude ``|g_h(0)|`` (``g_h(tau) = g_h(0) cos tau``) and
+    it dissipates nothing (no slip, no damping). Applies only when ``state`` is
+    exactly that orbit at its section (stuck, ``theta = 0``, period 1, the held
+    state to the last bit: the no-motion points decided in their first cycle or
+    by :func:`tasks.kernel.starts.held_margin`); returns whether it did.
+    """
+    n = (state.shape[0] - 2) // 2
+    if period != 1 or state[2 * n] != 0.0 or state[2 * n + 1] != 0.0:
+        return False
+    X_held, exists = _held_response(ctx[CTX_SEG_STICK], ctx[CTX_PHI_S], ctx[CTX_T], n)
+    if not exists:
+        return False
+    for i in range(2 * n):
+        if state[i] != X_held[i]:
+            return False
+    for i in range(n):
+        dout[i] = abs(X_held[i])
+        dout[n + i] = abs(X_held[i] - c)
+    g0 = _contact_force(ctx[CTX_P], 1.0, ctx[CTX_K], X_held[:n], ctx[CTX_G_LOAD])
+    dout[2 * n + DESIGN_FORCE] = abs(g0)
+    dout[2 * n + DESIGN_DISSIPATION] = 0.0
+    dout[2 * n + DESIGN_VISCOUS] = 0.0
+    return True
+
+
+@njit(cache=True)
 def _harmonic_viscous(seg, r):
     """Viscous dissipation per cycle of the damped forced response without friction:
     ``2 pi r^2 sum_k sigma_k (P_k^2 + Q_k^2)`` (``r c_k = 2 r^2 sigma_k``, Eq. 4.2)."""
@@ -417,9 +465,19 @@ def orbit_designs(r, beta, scene, settings, out, final, samples):
     n = scene[0].shape[0]
     design = np.full((r.shape[0], 2 * n + DESIGN_SCALARS), np.nan)
     total = 0
+    rec = np.zeros((0, REC_X + 2 * n))
     for i in range(r.shape[0]):
-        if out[i, OUT_REGIME] < 0.0 or out[i, OUT_CONVERGED] == 0.0:
-            continue
-        period = max(1, int(out[i, OUT_PERIOD]))
-        total += orbit_design(r[i], beta[i], scene, settings, final[i], period, samples, design[i])
+        total += point_design(
+            r[i], beta[i], scene, settings, out[i], final[i], samples, design[i], rec, 0
+        )
     return design, total
+
+
+@njit(cache=True)
+def point_design(r, beta, scene, settings, out, final, samples, dout, rec, nr):
+    """:func:`orbit_design_recorded` of one point of :func:`run_points`' output (its
+    ``out`` and ``final`` rows) if it converged; ``dout`` is left alone otherwise."""
+    if out[OUT_REGIME] < 0.0 or out[OUT_CONVERGED] == 0.0:
+        return 0
+    period = max(1, int(out[OUT_PERIOD]))
+    return orbit_design_recorded(r, beta, scene, settings, final, period, samples, dout, rec, nr)

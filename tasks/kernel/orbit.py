@@ -31,6 +31,7 @@ from tasks.kernel.layout import (
     CTX_SEG_STICK,
     CTX_TOL,
     CTX_W,
+    EV_END,
     EV_SECTION,
     EVALS,
     KIND,
@@ -102,23 +103,14 @@ def _phase_holds(seg, sc, t_len, h, tol):
 
 
 @njit(cache=True)
-def orbit_holds(X, mode, theta, period, ctx, work):
-    """Orbit invariant: the converged period from the section state is a solution.
+def record_orbit(X, mode, theta, period, ctx, work):
+    """Replay ``period`` cycles from ``(X, mode)`` at ``tau = theta`` recording every event.
 
-    Re-simulates ``period`` cycles from ``(X, mode)`` at ``tau = theta`` with
-    every event recorded, then checks every phase densely in closed form
-    (:func:`_phase_holds`): through each stick phase ``|g| <= beta`` (to
-    ``ORBIT_RTOL``), through each slip phase the contact velocity keeps its
-    sign. Independent of the event search it checks: a missed unsticking or
-    reversal shows as a violation. Costs about one period more per point.
-    Returns 1 (holds), 0 (violated) or -1 (the work budget ran out first).
+    Returns ``(rec, n_records, status)``: the records (:func:`replay_cycles`, the
+    buffer grown until they fit) and the status of the replay (``n_records`` is 0
+    unless ``STATUS_OK``).
     """
     n = X.shape[0] // 2
-    beta = ctx[CTX_BETA]
-    h_slip = ctx[CTX_H_SLIP]
-    h_stick = ctx[CTX_H_STICK]
-    tol = ctx[CTX_TOL]
-    sc = ctx[CTX_SC]
     rows = 64
     stats = np.zeros(N_STATS)
     while True:
@@ -128,14 +120,47 @@ def orbit_holds(X, mode, theta, period, ctx, work):
         xd = X[n:].copy()
         replay_cycles(x, xd, mode, theta, period, stats, ctx, work, rec, rec_n)
         if stats[ST_STATUS] != STATUS_OK:
-            return -1 if stats[ST_STATUS] == WORK_LIMIT else 0
+            return rec, 0, stats[ST_STATUS]
         if rec_n[0] < rows:
-            break
+            return rec, rec_n[0], stats[ST_STATUS]
         rows *= 4
+
+
+@njit(cache=True)
+def orbit_holds(X, mode, theta, period, ctx, work):
+    """Orbit invariant: the converged period from the section state is a solution.
+
+    Re-simulates ``period`` cycles from ``(X, mode)`` at ``tau = theta`` with
+    every event recorded (:func:`record_orbit`), then checks every phase densely
+    in closed form (:func:`records_hold`). Costs about one period more per point.
+    Returns 1 (holds), 0 (violated) or -1 (the work budget ran out first).
+    """
+    rec, nr, status = record_orbit(X, mode, theta, period, ctx, work)
+    if status != STATUS_OK:
+        return -1 if status == WORK_LIMIT else 0
+    return records_hold(rec, nr, ctx, work)
+
+
+@njit(cache=True)
+def records_hold(rec, nr, ctx, work):
+    """The orbit invariant on ``nr`` recorded phase boundaries (:func:`record_orbit`).
+
+    Checks every phase densely in closed form (:func:`_phase_holds`): through
+    each stick phase ``|g| <= beta`` (to ``ORBIT_RTOL``), through each slip
+    phase the contact velocity keeps its sign. Independent of the event search
+    it checks: a missed unsticking or reversal shows as a violation. Returns 1
+    (holds), 0 (violated) or -1 (the work budget ran out first).
+    """
+    n = (rec.shape[1] - REC_X) // 2
+    beta = ctx[CTX_BETA]
+    h_slip = ctx[CTX_H_SLIP]
+    h_stick = ctx[CTX_H_STICK]
+    tol = ctx[CTX_TOL]
+    sc = ctx[CTX_SC]
     eta, etad, eta_s, etad_s, q = work
     x = np.empty(n)
     xd = np.empty(n)
-    for j in range(rec_n[0] - 1):
+    for j in range(nr - 1):
         t_len = rec[j + 1, REC_TAU] - rec[j, REC_TAU]
         if not t_len > 0.0:
             continue
@@ -177,23 +202,47 @@ def orbit_holds(X, mode, theta, period, ctx, work):
 
 
 @njit(cache=True)
-def _check_orbit(r, beta, scene, settings, out, final):
+def _check_orbit(r, beta, scene, settings, out, final, keep, kept):
     """Flag a converged point whose orbit fails :func:`orbit_holds` (never report it).
 
     The point becomes ``NUMERICAL_FAILURE`` (an event the search could not
     locate), or ``WORK_LIMIT`` if the check ran out of budget (it has a budget
     of its own, ``max_work``). No-motion points are certified by :func:`never_unsticks` and
     continuous points at beta = 0 are linear: neither is re-checked.
+
+    ``keep`` may hold ``kept`` rows: the records of a period-1 orbit's verified
+    period (:func:`tasks.kernel.shooting._shoot`); when they start from exactly
+    the state, phase and section of ``final``, they are the replay (the same
+    events, bit for bit) and are checked without replaying it again.
+
+    Returns ``(rec, n_records)``: the checked orbit's records (:func:`record_orbit`,
+    reused by the design pass), ``n_records`` 0 where nothing was checked or the
+    check failed.
     """
-    if out[OUT_CONVERGED] != 1.0 or out[OUT_REGIME] == NO_MOTION or beta == 0.0:
-        return
-    ctx, work, _, _, _ = _context(r, beta, scene, settings)
     n = (final.shape[0] - 2) // 2
+    if out[OUT_CONVERGED] != 1.0 or out[OUT_REGIME] == NO_MOTION or beta == 0.0:
+        return np.zeros((0, REC_X + 2 * n)), 0
+    ctx, work, _, _, _ = _context(r, beta, scene, settings)
     X = final[: 2 * n].copy()
     mode = int(final[2 * n])
     theta = final[2 * n + 1]
-    holds = orbit_holds(X, mode, theta, int(out[OUT_PERIOD]), ctx, work)
+    period = int(out[OUT_PERIOD])
+    same = period == 1 and kept > 1 and keep[kept - 1, REC_KIND] == EV_END
+    same = same and keep[0, REC_TAU] == theta and int(keep[0, REC_MODE]) == mode
+    for i in range(2 * n):
+        same = same and keep[0, REC_X + i] == X[i]
+    if same:
+        rec = keep[:kept].copy()
+        nr = kept
+        status = STATUS_OK
+    else:
+        rec, nr, status = record_orbit(X, mode, theta, period, ctx, work)
+    if status != STATUS_OK:
+        holds = -1 if status == WORK_LIMIT else 0
+    else:
+        holds = records_hold(rec, nr, ctx, work)
     if holds == 0:
         _undetermined(out, NUMERICAL_FAILURE, out[OUT_CYCLES], out[OUT_IC])
     elif holds < 0:
         _undetermined(out, WORK_LIMIT, out[OUT_CYCLES], out[OUT_IC])
+    return rec, nr if holds == 1 else 0

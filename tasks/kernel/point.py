@@ -21,6 +21,7 @@ from tasks.kernel.context import _context
 from tasks.kernel.creep import _asymptotic_no_motion, _creep_limit, creep_settled, creep_threshold
 from tasks.kernel.cycle import _advance, _cycle, _max_abs, _max_abs_diff
 from tasks.kernel.damping import is_damped, linear_amplitude_damped
+from tasks.kernel.design import DESIGN_SCALARS, point_design
 from tasks.kernel.layout import (
     CTX_BETA,
     CTX_F_R2,
@@ -45,6 +46,7 @@ from tasks.kernel.layout import (
     OUT_REGIME,
     OUT_STICK,
     OUT_STOPS,
+    REC_X,
     ST_DMAX,
     ST_DMIN,
     ST_EVENTS,
@@ -60,7 +62,13 @@ from tasks.kernel.layout import (
 )
 from tasks.kernel.orbit import _check_orbit
 from tasks.kernel.outcome import _finish, _no_motion_by_margin, _undetermined
-from tasks.kernel.shooting import SETTLE_PHASES, _same_chart, _shoot, settle_at_phases
+from tasks.kernel.shooting import (
+    REC_ROWS,
+    SETTLE_PHASES,
+    _same_chart,
+    _shoot,
+    settle_at_phases,
+)
 from tasks.kernel.starts import _held_response, held_margin, start_phase
 from tasks.regimes import (
     CONTINUOUS,
@@ -83,6 +91,11 @@ WARM_NEWTON = 6
 # moves too far between the two points for a few Newton steps to follow it).
 WARM_STEP = 0.05
 WARM_PHASE = 0.3
+# One early shot (before shooting_after) once this many cycles (and min_cycles)
+# have run and the event pattern (chart, stops, reversals) has repeated this many
+# times in a row.
+EARLY_SHOT = 3
+EARLY_PATTERN = 2
 
 
 @njit(cache=True)
@@ -121,9 +134,11 @@ def _resonant_growth(seg_slip, f_r2, beta):
 
 
 @njit(cache=True)
-def simulate_point(r, beta, scene, settings, out, final):
+def simulate_point(r, beta, scene, settings, out, final, keep, kept):
     """Classify one (r, beta) point; writes the fields into ``out`` and the last
-    section state and phase ``(x, x', mode)`` into ``final``."""
+    section state and phase ``(x, x', mode)`` into ``final``. A point settled by
+    shooting leaves its verified period's records in ``keep`` (``kept[0]`` rows,
+    else 0: :func:`tasks.kernel.shooting._shoot`)."""
     (
         _event_tol,
         _step_fraction,
@@ -141,6 +156,7 @@ def simulate_point(r, beta, scene, settings, out, final):
     ) = settings
     ctx, work, X, mode, ic_used = _context(r, beta, scene, settings)
     out[OUT_ASYMPTOTIC] = 0.0
+    kept[0] = 0
     slip_tol = creep_threshold(ctx, beta)
     small_run = 0
     quiet_run = 0
@@ -192,6 +208,8 @@ def simulate_point(r, beta, scene, settings, out, final):
     run_start_scale = 0.0
     chart_flips = 0
     moves = 0
+    pattern_run = 0
+    early_tried = False
     while cycles < max_cycles:
         X_new, mode_new, stick_start = _cycle(X, mode, stick_start, stats, ctx, work, theta)
         cycles += 1
@@ -282,11 +300,31 @@ def simulate_point(r, beta, scene, settings, out, final):
         ):
             _undetermined(out, UNBOUNDED, cycles, ic_used)
             return
+        if (
+            _same_chart(mode, mode_prev)
+            and stats[ST_STOPS] == stats_prev[ST_STOPS]
+            and stats[ST_REVERSALS] == stats_prev[ST_REVERSALS]
+        ):
+            pattern_run += 1
+        else:
+            pattern_run = 0
         for i in range(N_STATS):
             stats_prev[i] = stats[i]
         diff_prev = diff
-        shoot_now = shooting and cycles >= next_shot
-        if (shoot_now or chart_flips >= 2) and moves < 8:
+        # one early shot once the event pattern has repeated (cheap: the Jacobian
+        # and the Newton steps follow the recorded events, shooting.py), from the
+        # current section
+        early = (
+            shooting
+            and not early_tried
+            and cycles >= max(EARLY_SHOT, min_cycles)
+            and pattern_run >= EARLY_PATTERN
+            and cycles < next_shot
+        )
+        early_tried = early_tried or early
+        shoot_now = shooting and (cycles >= next_shot or early)
+        # (an early shot keeps the section: a failed one leaves the iteration as it was)
+        if ((shoot_now and not early) or chart_flips >= 2) and moves < 8:
             # The section falls near an event (the phase there flips between
             # cycles): move it to the middle of the longest phase of the last
             # period, where the Poincare map is smooth, and restart the history.
@@ -311,8 +349,11 @@ def simulate_point(r, beta, scene, settings, out, final):
                 chart_flips = 0
                 unit_ratio_run = 0
         if shoot_now:
-            next_shot = 2 * next_shot
-            ok, Xs, used = _shoot(X, mode, stats, ctx, work, section_rtol, ref, 20, theta)
+            if not early:
+                next_shot = 2 * next_shot
+            ok, Xs, used = _shoot(
+                X, mode, stats, ctx, work, section_rtol, ref, 20, theta, keep, kept
+            )
             cycles += used
             if ok:
                 final[: 2 * n] = Xs
@@ -321,6 +362,8 @@ def simulate_point(r, beta, scene, settings, out, final):
                 _finish(out, stats, stats_prev, 1, cycles, ic_used)
                 _creep_limit(out, slip_tol)
                 return
+            if early:  # a failed early shot changes nothing of the schedule
+                continue
             shots_failed += 1
             if shots_failed in (2, 4, 6):  # a slow point: full Newton from here
                 ok, Xs, mode_s, theta_s, used = settle_at_phases(
@@ -364,7 +407,7 @@ def simulate_point(r, beta, scene, settings, out, final):
 
 
 @njit(cache=True)
-def warm_point(r, beta, scene, settings, out, final, seed):
+def warm_point(r, beta, scene, settings, out, final, seed, keep, kept):
     """Steady state of a point by shooting from a neighbour's converged orbit (a warm start).
 
     ``seed`` is the neighbour's row of :func:`run_points`' ``final`` (section
@@ -381,7 +424,8 @@ def warm_point(r, beta, scene, settings, out, final, seed):
     resonant growth.
 
     Returns ``(accepted, cycles)``; when not accepted, ``out`` and ``final``
-    are left to :func:`simulate_point`.
+    are left to :func:`simulate_point`. ``keep``, ``kept``: as for
+    :func:`simulate_point`.
     """
     section_rtol = settings[2]
     shooting = settings[5]
@@ -402,7 +446,10 @@ def warm_point(r, beta, scene, settings, out, final, seed):
     static = _max_abs(np.linalg.solve(ctx[CTX_K], ctx[CTX_P]))
     ref = max(_max_abs(X_held), static, _max_abs(X0), 1e-300)
     stats = np.zeros(N_STATS)
-    ok, Xs, used = _shoot(X0, mode0, stats, ctx, work, section_rtol, ref, WARM_NEWTON, theta)
+    kept[0] = 0
+    ok, Xs, used = _shoot(
+        X0, mode0, stats, ctx, work, section_rtol, ref, WARM_NEWTON, theta, keep, kept
+    )
     if not ok:
         return False, used
     out[OUT_ASYMPTOTIC] = 0.0
@@ -427,7 +474,16 @@ def _seeds_next(out):
 
 @njit(cache=True, nogil=True)
 def run_points(r, beta, scene, settings):
-    """Classify every point ``(r[i], beta[i])``.
+    """Classify every point ``(r[i], beta[i])`` (:func:`run_points_design` without
+    the design pass). Returns ``(out, final)``."""
+    out, final, _ = run_points_design(r, beta, scene, settings, 0)
+    return out, final
+
+
+@njit(cache=True)
+def run_points_design(r, beta, scene, settings, samples):
+    """Classify every point ``(r[i], beta[i])``, and with ``samples > 0`` compute the
+    design quantities of its orbit.
 
     With ``settings[12]`` (``warm``, :mod:`tasks.fidelity`) a point first tries a warm start
     (:func:`warm_point`) from the orbit of the last point before it that
@@ -443,13 +499,23 @@ def run_points(r, beta, scene, settings):
     warm start's periods are counted in ``cycles``; ``initial_condition`` stays
     the held start, the reference the steady state is the limit of.
 
-    Returns ``(out, final)``: ``out`` is ``(n_points, N_OUT)`` (columns
-    ``OUT_*``), ``final`` the last section state and phase of each point.
+    The design quantities (:func:`tasks.kernel.design.orbit_design_recorded`,
+    ``samples`` per cycle at least) are computed from the records of the orbit
+    check (:func:`tasks.kernel.orbit._check_orbit`): the orbit is replayed once
+    for both.
+
+    Returns ``(out, final, design)``: ``out`` is ``(n_points, N_OUT)`` (columns
+    ``OUT_*``), ``final`` the last section state and phase of each point,
+    ``design`` the ``(n_points, 2 n + 3)`` design quantities (NaN where the point
+    has no steady state; no rows when ``samples`` is 0).
     """
     n = scene[0].shape[0]
     out = np.empty((r.shape[0], N_OUT))
     final = np.empty((r.shape[0], 2 * n + 2))
+    design = np.full((r.shape[0] if samples > 0 else 0, 2 * n + DESIGN_SCALARS), np.nan)
     warm = settings[12]
+    keep = np.empty((REC_ROWS, REC_X + 2 * n))  # a shot's verified period, for the check
+    kept = np.zeros(1, dtype=np.int64)
     phase_rate = math.sqrt(scene[5][-1])  # the fastest sliding mode: Omega = sqrt(lambda) / r
     seeded = False
     seed_r = 0.0
@@ -462,18 +528,28 @@ def run_points(r, beta, scene, settings):
         near = drift <= WARM_PHASE and abs(beta[i] - seed_beta) <= WARM_STEP * max(
             beta[i], seed_beta
         )
+        rec = np.zeros((0, REC_X + 2 * n))
+        nr = 0
         if warm and seeded and near:
-            accepted, spent = warm_point(r[i], beta[i], scene, settings, out[i], final[i], seed)
+            accepted, spent = warm_point(
+                r[i], beta[i], scene, settings, out[i], final[i], seed, keep, kept
+            )
             if accepted:
-                _check_orbit(r[i], beta[i], scene, settings, out[i], final[i])
+                rec, nr = _check_orbit(
+                    r[i], beta[i], scene, settings, out[i], final[i], keep, kept[0]
+                )
                 accepted = out[i, OUT_CONVERGED] == 1.0
         if not accepted:
-            simulate_point(r[i], beta[i], scene, settings, out[i], final[i])
-            _check_orbit(r[i], beta[i], scene, settings, out[i], final[i])
+            simulate_point(r[i], beta[i], scene, settings, out[i], final[i], keep, kept)
+            rec, nr = _check_orbit(r[i], beta[i], scene, settings, out[i], final[i], keep, kept[0])
             out[i, OUT_CYCLES] += spent
+        if samples > 0:
+            point_design(
+                r[i], beta[i], scene, settings, out[i], final[i], samples, design[i], rec, nr
+            )
         if warm and _seeds_next(out[i]):
             seed[:] = final[i]
             seed_r = r[i]
             seed_beta = beta[i]
             seeded = True
-    return out, final
+    return out, final, design

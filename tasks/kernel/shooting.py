@@ -16,23 +16,54 @@ import math
 import numpy as np
 from numba import njit
 
-from tasks.kernel.cycle import _advance, _cycle, _max_abs
+from tasks.kernel.cycle import _advance, _cycle, _max_abs, replay_cycles
 from tasks.kernel.layout import (
+    BETA,
     CTX_B,
     CTX_BETA,
+    CTX_DSTAT_R2,
+    CTX_F_R2,
+    CTX_G_COS,
+    CTX_G_D0,
     CTX_P,
+    CTX_PHI,
+    CTX_PHI_S,
+    CTX_PHI_S_T_GAMMA_S,
+    CTX_PHI_T_GAMMA,
     CTX_PROJ,
+    CTX_SC,
+    CTX_SEG_SLIP,
+    CTX_SEG_STICK,
     CTX_T,
     CTX_W,
+    ETAD_OFF,
+    EV_END,
+    EV_GRAZE,
     N_STATS,
+    REC_G,
+    REC_KIND,
+    REC_MODE,
+    REC_TAU,
+    REC_X,
     ST_FOREVER,
     ST_STATUS,
     STATUS_OK,
     TWO_PI,
 )
-from tasks.kernel.phases import _dot
+from tasks.kernel.phases import _dot, _slip_state, _start_slip, _start_stick, _stick_state
+from tasks.kernel.propagation import evaluate
 from tasks.kernel.starts import start_phase
 
+# Rows of the event record a shooting period keeps (:func:`_period_recorded`); a
+# period with more events differences its Jacobian columns over full periods.
+REC_ROWS = 512
+# How far (relative to its phase) a recorded event may move in a followed period:
+# for a difference column (:func:`_fd_jacobian`) and for a Newton step on the
+# followed map (:func:`_follow_newton`, verified by a full period after).
+FD_REACH = 1e-3
+STEP_REACH = 0.1
+# Newton steps on the followed map between two full periods of :func:`_shoot`.
+FOLLOW_NEWTON = 6
 # Sections a slow point's Newton settle tries (:func:`settle_at_phases`).
 SETTLE_PHASES = 4
 SETTLE_CYCLES = 150
@@ -100,10 +131,146 @@ def _same_chart(mode_a, mode_b):
 
 
 @njit(cache=True)
-def _fd_jacobian(y0, y1, mode, ctx, work, scale, J, theta):
-    """``J = dP/dy - I`` by forward differences (one period per column).
+def _period_recorded(X, mode, stats, ctx, work, theta, rec, rec_n):
+    """:func:`_cycle` from ``(X, mode)`` at ``tau = theta`` (stick start ``theta``),
+    recording its events in ``rec`` (:func:`replay_cycles`; the same period bit for
+    bit). Returns the new section state and phase."""
+    n = X.shape[0] // 2
+    x = X[:n].copy()
+    xd = X[n:].copy()
+    rec_n[0] = 0
+    m1, _ = replay_cycles(x, xd, mode, theta, 1, stats, ctx, work, rec, rec_n)
+    X1 = np.empty(2 * n)
+    X1[:n] = x
+    X1[n:] = xd
+    return X1, m1
 
-    Returns the periods used, or -1 if a perturbed period left the chart.
+
+@njit(cache=True)
+def _records_usable(rec, nr):
+    """Whether a recorded period can carry nearby starts (:func:`_follow_records`):
+    complete (it ends with its ``EV_END`` row) and without grazes (a touching zero
+    that a nearby start may not reach)."""
+    if nr < 2 or nr >= rec.shape[0] or rec[nr - 1, REC_KIND] != EV_END:
+        return False
+    for j in range(1, nr - 1):
+        if rec[j, REC_KIND] == EV_GRAZE:
+            return False
+    return True
+
+
+@njit(cache=True)
+def _follow_records(X, mode, rec, nr, ctx, work, theta, out, reach):
+    """The period from a start near the recorded one, with the recorded event pattern.
+
+    Each phase of the record (:func:`_period_recorded`) is started from the state
+    reached so far and ended at the same kind of event, located by Newton's method
+    on the phase's observable (contact velocity 0 while sliding, ``|g|`` at the
+    unsticking limit while stuck) from the recorded time; the last phase ends at
+    the section ``theta + 2 pi``. For nearby starts this is the Poincare map itself
+    (the events move smoothly with the start) at the cost of a few evaluations per
+    event instead of a bracket scan. Writes the end state into ``out``; returns
+    False (``out`` undefined) where the pattern may not hold: a different starting
+    phase, an event time that Newton's method does not settle or that moves by more
+    than ``reach`` times its phase (or beyond the section).
+    """
+    n = X.shape[0] // 2
+    seg_slip = ctx[CTX_SEG_SLIP]
+    seg_stick = ctx[CTX_SEG_STICK]
+    sc = ctx[CTX_SC]
+    beta = ctx[CTX_BETA]
+    b = ctx[CTX_B]
+    eta, etad, eta_s, etad_s, q = work
+    phase = _phase_of(X, mode, b)
+    if phase != int(rec[0, REC_MODE]):
+        return False
+    x = X[:n].copy()
+    xd = X[n:].copy()
+    tau = theta
+    tau_end = theta + TWO_PI
+    v0 = _dot(b, xd)
+    for j in range(nr - 1):
+        stuck = phase == 0
+        d0 = 0.0
+        if stuck:
+            seg = seg_stick
+            ev = eta_s
+            evd = etad_s
+            d0 = _start_stick(
+                seg,
+                sc,
+                x,
+                xd,
+                tau,
+                beta,
+                b,
+                ctx[CTX_W],
+                ctx[CTX_PROJ],
+                ctx[CTX_PHI_S_T_GAMMA_S],
+                ctx[CTX_DSTAT_R2],
+                ctx[CTX_G_COS],
+                ctx[CTX_G_D0],
+                q,
+            )
+        else:
+            seg = seg_slip
+            ev = eta
+            evd = etad
+            _start_slip(
+                seg, sc, x, xd, tau, float(phase), v0, beta, ctx[CTX_F_R2], ctx[CTX_PHI_T_GAMMA]
+            )
+        if j + 1 == nr - 1:  # the last phase ends at the section
+            t = tau_end - tau
+            if not t >= 0.0:
+                return False
+        else:
+            t_rec = rec[j + 1, REC_TAU] - rec[j, REC_TAU]
+            t = rec[j + 1, REC_TAU] - tau
+            target = 0.0
+            if stuck:
+                target = sc[BETA] if rec[j + 1, REC_G] > 0.0 else -sc[BETA]
+            settled = False
+            for _ in range(12):
+                y, dy = evaluate(seg, sc, t, ev, evd)
+                if not (dy != 0.0 and math.isfinite(dy)):
+                    return False
+                dt = (target - y) / dy
+                t += dt
+                if abs(dt) <= 1e-15 * (1.0 + abs(t)):
+                    settled = True
+                    break
+            if not settled or not (
+                abs(t - (rec[j + 1, REC_TAU] - tau)) <= reach * max(t_rec, 1e-3)
+            ):
+                return False
+            if not (t > 0.0 and tau + t < tau_end):
+                return False
+        evaluate(seg, sc, t, ev, evd)
+        if stuck:
+            _stick_state(
+                ctx[CTX_PHI_S], ctx[CTX_T], ctx[CTX_W], d0, ev, evd, q, x, xd, seg[ETAD_OFF]
+            )
+        else:
+            _slip_state(ctx[CTX_PHI], ev, evd, x, xd, seg[ETAD_OFF])
+        tau += t
+        phase = int(rec[j + 1, REC_MODE])
+        v0 = 0.0
+    out[:n] = x
+    out[n:] = xd
+    return True
+
+
+@njit(cache=True)
+def _fd_jacobian(y0, y1, mode, ctx, work, scale, J, theta, rec, nr):
+    """``J = dP/dy - I`` by forward differences.
+
+    With a usable record of the period from ``y0`` (``nr`` rows,
+    :func:`_records_usable`), each column follows the recorded event pattern
+    (:func:`_follow_records`, a few evaluations per event), differenced against
+    the recorded start followed the same way; a column that cannot follow it
+    costs one full period (:func:`_cycle`), differenced against ``y1``.
+
+    Returns the full periods used, or -1 if a perturbed period left the chart.
     """
     n = ctx[CTX_P].shape[0]
     b = ctx[CTX_B]
@@ -112,23 +279,92 @@ def _fd_jacobian(y0, y1, mode, ctx, work, scale, J, theta):
     proj = ctx[CTX_PROJ]
     dim = y0.shape[0]
     probe = np.empty(N_STATS)
+    Pk = np.empty(2 * n)
+    y1f = y1
+    follow = _records_usable(rec, nr)
+    if follow:
+        X0 = _expand(y0, mode, n, w, T)
+        follow = _follow_records(X0, mode, rec, nr, ctx, work, theta, Pk, FD_REACH)
+        if follow:
+            y1f = _reduce(Pk, mode, b, w, proj)
+    used = 0
     for k in range(dim):
         hk = 1e-7 * max(abs(y0[k]), 1e-3 * scale)
         yp = y0.copy()
         yp[k] += hk
         Xp = _expand(yp, mode, n, w, T)
-        Pk, mk, _ = _cycle(Xp, _phase_of(Xp, mode, b), theta, probe, ctx, work, theta)
-        if not _same_chart(mk, mode) or probe[ST_STATUS] != STATUS_OK:
-            return -1
-        yk = _reduce(Pk, mode, b, w, proj)
+        if follow and _follow_records(Xp, mode, rec, nr, ctx, work, theta, Pk, FD_REACH):
+            yk = _reduce(Pk, mode, b, w, proj)
+            base = y1f
+        else:
+            Pk, mk, _ = _cycle(Xp, _phase_of(Xp, mode, b), theta, probe, ctx, work, theta)
+            used += 1
+            if not _same_chart(mk, mode) or probe[ST_STATUS] != STATUS_OK:
+                return -1
+            yk = _reduce(Pk, mode, b, w, proj)
+            base = y1
         for i in range(dim):
-            J[i, k] = (yk[i] - y1[i]) / hk
+            J[i, k] = (yk[i] - base[i]) / hk
         J[k, k] -= 1.0
-    return dim
+    return used
 
 
 @njit(cache=True)
-def _shoot(X0, mode, stats, ctx, work, rtol, floor, max_newton, theta):
+def _follow_newton(y0, R0, J, mode, rec, nr, ctx, work, theta, target, scale):
+    """Newton's method with Broyden updates of ``J`` on the followed Poincare map.
+
+    The map is the current period's event pattern followed from nearby starts
+    (:func:`_follow_records`, events moving by up to ``STEP_REACH`` of their
+    phase): no bracket scan, so a step costs a few evaluations per event. At most
+    ``FOLLOW_NEWTON`` steps, each of which must reduce the residual, until it is
+    below ``target``. The result is only a candidate: :func:`_shoot` verifies it on
+    a full period (a new event would change the map there, and the residual).
+    Returns ``(y, moved)``; ``J`` is updated in place.
+    """
+    n = ctx[CTX_P].shape[0]
+    b = ctx[CTX_B]
+    w = ctx[CTX_W]
+    T = ctx[CTX_T]
+    proj = ctx[CTX_PROJ]
+    dim = y0.shape[0]
+    yf = y0.copy()
+    Rf = R0.copy()
+    res_f = _max_abs(Rf)
+    Pf = np.empty(2 * n)
+    moved = False
+    for _ in range(FOLLOW_NEWTON):
+        try:
+            step = np.linalg.solve(J, -Rf)
+        except Exception:  # singular
+            break
+        if not np.all(np.isfinite(step)) or _max_abs(step) > 10.0 * scale:
+            break
+        yn = yf + step
+        if not _follow_records(
+            _expand(yn, mode, n, w, T), mode, rec, nr, ctx, work, theta, Pf, STEP_REACH
+        ):
+            break
+        Rn = _reduce(Pf, mode, b, w, proj) - yn
+        rn = _max_abs(Rn)
+        if not rn < res_f:
+            break
+        ss = _dot(step, step)
+        if ss > 0.0:  # Broyden: J += ((Rn - Rf) - J s) s^T / (s . s)
+            u = (Rn - Rf) - J @ step
+            for i in range(dim):
+                for k in range(dim):
+                    J[i, k] += u[i] * step[k] / ss
+        yf = yn
+        Rf = Rn
+        res_f = rn
+        moved = True
+        if res_f <= target:
+            break
+    return yf, moved
+
+
+@njit(cache=True)
+def _shoot(X0, mode, stats, ctx, work, rtol, floor, max_newton, theta, keep, kept):
     """Newton's method on the Poincare map ``P(X) - X = 0`` (shooting).
 
     Works in the coordinates of the phase the section falls in
@@ -141,7 +377,8 @@ def _shoot(X0, mode, stats, ctx, work, rtol, floor, max_newton, theta):
     1 + 1e-6): shooting must find the attractor, not any periodic orbit.
 
     Returns ``(success, X, cycles_used)``; on success ``stats`` holds the
-    statistics of the verified period ``X -> P(X)``.
+    statistics of the verified period ``X -> P(X)`` and its recorded events are
+    copied into ``keep`` (``kept[0]`` rows, if they fit; else ``kept`` is left).
     """
     n = X0.shape[0] // 2
     b = ctx[CTX_B]
@@ -151,7 +388,12 @@ def _shoot(X0, mode, stats, ctx, work, rtol, floor, max_newton, theta):
     cycles = 0
     y0 = _reduce(X0, mode, b, w, proj)
     X0 = _expand(y0, mode, n, w, T)
-    X1, m1, _ = _cycle(X0, _phase_of(X0, mode, b), theta, stats, ctx, work, theta)
+    # the events of the current iterate's period (rec) and of a trial step (rec_t)
+    rec = np.empty((REC_ROWS, REC_X + 2 * n))
+    rec_t = np.empty((REC_ROWS, REC_X + 2 * n))
+    rec_n = np.zeros(1, dtype=np.int64)
+    rec_tn = np.zeros(1, dtype=np.int64)
+    X1, m1 = _period_recorded(X0, _phase_of(X0, mode, b), stats, ctx, work, theta, rec, rec_n)
     cycles += 1
     if not _same_chart(m1, mode) or stats[ST_STATUS] != STATUS_OK or stats[ST_FOREVER] > 0.0:
         return False, X0, cycles
@@ -159,7 +401,7 @@ def _shoot(X0, mode, stats, ctx, work, rtol, floor, max_newton, theta):
     dim = y0.shape[0]
     J = np.empty((dim, dim))
     scale = max(_max_abs(X1), 1e-300)
-    used = _fd_jacobian(y0, y1, mode, ctx, work, scale, J, theta)
+    used = _fd_jacobian(y0, y1, mode, ctx, work, scale, J, theta, rec, rec_n[0])
     if used < 0:
         return False, X0, cycles + dim
     cycles += used
@@ -175,7 +417,46 @@ def _shoot(X0, mode, stats, ctx, work, rtol, floor, max_newton, theta):
             for i in range(dim):
                 dP[i, i] += 1.0
             radius = np.max(np.abs(np.linalg.eigvals(dP.astype(np.complex128))))
-            return radius <= 1.0 + 1e-6, X0, cycles
+            stable = radius <= 1.0 + 1e-6
+            nr = rec_n[0]
+            if stable and nr < rec.shape[0] and nr <= keep.shape[0]:
+                keep[:nr] = rec[:nr]  # the verified period's events, for the orbit check
+                kept[0] = nr
+            return stable, X0, cycles
+        if _records_usable(rec, rec_n[0]):
+            # Newton on the followed map (no bracket scans), then one full period
+            # from its candidate: the new iterate if it reduced the residual
+            yf, moved = _follow_newton(
+                y0,
+                R,
+                J,
+                mode,
+                rec,
+                rec_n[0],
+                ctx,
+                work,
+                theta,
+                0.01 * rtol * max(scale, floor),
+                scale,
+            )
+            if moved:
+                Xn = _expand(yf, mode, n, w, T)
+                X1n, mn = _period_recorded(
+                    Xn, _phase_of(Xn, mode, b), stats, ctx, work, theta, rec_t, rec_tn
+                )
+                cycles += 1
+                ok = _same_chart(mn, mode) and stats[ST_STATUS] == STATUS_OK
+                if ok and stats[ST_FOREVER] == 0.0:
+                    y1n = _reduce(X1n, mode, b, w, proj)
+                    if _max_abs(y1n - yf) < res:
+                        y0 = yf
+                        y1 = y1n
+                        X0 = Xn
+                        X1 = X1n
+                        rec, rec_t = rec_t, rec
+                        rec_n, rec_tn = rec_tn, rec_n
+                        fresh = False
+                        continue
         try:
             step = np.linalg.solve(J, -R)
         except Exception:  # singular: no isolated fixed point (e.g. resonance)
@@ -189,7 +470,9 @@ def _shoot(X0, mode, stats, ctx, work, rtol, floor, max_newton, theta):
         for _ls in range(5):
             yn = y0 + lam * step
             Xn = _expand(yn, mode, n, w, T)
-            X1n, mn, _ = _cycle(Xn, _phase_of(Xn, mode, b), theta, stats, ctx, work, theta)
+            X1n, mn = _period_recorded(
+                Xn, _phase_of(Xn, mode, b), stats, ctx, work, theta, rec_t, rec_tn
+            )
             cycles += 1
             if _same_chart(mn, mode) and stats[ST_STATUS] == STATUS_OK and stats[ST_FOREVER] == 0.0:
                 y1n = _reduce(X1n, mode, b, w, proj)
@@ -207,6 +490,8 @@ def _shoot(X0, mode, stats, ctx, work, rtol, floor, max_newton, theta):
                     y1 = y1n
                     X0 = Xn
                     X1 = X1n
+                    rec, rec_t = rec_t, rec
+                    rec_n, rec_tn = rec_tn, rec_n
                     accepted = True
                     fresh = False
                     break
@@ -215,7 +500,7 @@ def _shoot(X0, mode, stats, ctx, work, rtol, floor, max_newton, theta):
             if fresh:
                 return False, X0, cycles
             # the updated Jacobian went stale: rebuild it once here
-            used = _fd_jacobian(y0, y1, mode, ctx, work, scale, J, theta)
+            used = _fd_jacobian(y0, y1, mode, ctx, work, scale, J, theta, rec, rec_n[0])
             if used < 0:
                 return False, X0, cycles + dim
             cycles += used
@@ -250,16 +535,20 @@ def newton_settle(X0, mode, stats, ctx, work, rtol, floor, max_iter, theta):
     dim = y.shape[0]
     J = np.empty((dim, dim))
     cycles = 0
+    rec = np.empty((REC_ROWS, REC_X + 2 * n))
+    rec_n = np.zeros(1, dtype=np.int64)
     for _ in range(max_iter):
         X = _expand(y, mode, n, w, T)
-        P, m1, _s = _cycle(X, _phase_of(X, mode, b), theta, stats, ctx, work, theta)
+        P, m1 = _period_recorded(X, _phase_of(X, mode, b), stats, ctx, work, theta, rec, rec_n)
         cycles += 1
         if stats[ST_STATUS] != STATUS_OK or stats[ST_FOREVER] > 0.0:
             return False, X, cycles
         y1 = _reduce(P, mode, b, w, proj)
         R = y1 - y
         scale = max(_max_abs(P), 1e-300)
-        used = _fd_jacobian(y, y1, mode, ctx, work, scale, J, theta)
+        # (a period that left the chart has no usable record in it)
+        nr = rec_n[0] if _same_chart(m1, mode) else 0
+        used = _fd_jacobian(y, y1, mode, ctx, work, scale, J, theta, rec, nr)
         if used < 0 or not np.all(np.isfinite(J)):
             return False, X, cycles + dim
         cycles += used
