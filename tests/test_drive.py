@@ -60,6 +60,6 @@ def test_several_contacts_hold_the_gil_one_thread_at_most(study_file):
     assert _threads(study_file, 2, 200, extra)[0] == 0  # longer than the start-up
 
 
-@pytest.mark.parametrize("entry", ["run_points", "orbit_designs"])
+@pytest.mark.parametrize("entry", ["run_points", "run_points_design", "orbit_designs"])
 def test_the_simulator_entry_points_release_the_gil(entry):
     assert getattr(kernel, entry).targetoptions.get("nogil") is True

@@ -480,7 +480,7 @@ def run_points(r, beta, scene, settings):
     return out, final
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def run_points_design(r, beta, scene, settings, samples):
     """Classify every point ``(r[i], beta[i])``, and with ``samples > 0`` compute the
     design quantities of its orbit.
