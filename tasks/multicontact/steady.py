@@ -84,6 +84,11 @@ SHOOT_EVERY = 20
 #: Velocity against the slip sign tolerated by the orbit check, relative to the
 #: contact's slip range (rounding of the samples next to a stop).
 ORBIT_VEL_RTOL = 1e-7
+#: The polish of a converged section (:func:`polish`): residual sought (relative to
+#: the section state), difference step of its Jacobian, chord steps at most.
+POLISH_RTOL = 1e-14
+POLISH_STEP = 1e-7
+POLISH_STEPS = 4
 
 
 @njit(cache=True)
@@ -323,6 +328,73 @@ def _newton(X, stuck, signs, cst, gst, ctx, max_work, tol):
 
 
 @njit(cache=True)
+def _map(X, stuck, signs, ctx, period, max_work):
+    """``(P^period(X), same)``: ``same`` when the period ran without a fault and
+    ended in the section's stuck set and slip signs (the branch of the map)."""
+    k = signs.shape[0]
+    cst = np.zeros((k, N_CST))
+    gst = np.zeros(N_GST)
+    s = signs.copy()
+    PX, st, _ = _period(X, stuck, s, cst, gst, ctx, period, max_work, False)
+    same = gst[GS_STATUS] == 0.0 and st == stuck and np.all(s == signs)
+    return PX, same
+
+
+@njit(cache=True)
+def polish(X, stuck, signs, ctx, period, max_work):
+    """The fixed point of ``P^period`` next to a converged section state ``X``,
+    to ``POLISH_RTOL`` (docs/contacts.md 4).
+
+    The plain iteration stops when two sections agree to ``section_rtol``; the
+    fixed point is then that close but no closer (slow points: further). A
+    chord Newton step (Jacobian of ``P^period - I`` by forward differences,
+    once; least squares, so a contact stuck through the period keeps its
+    position) is repeated while it shrinks the residual, at most
+    ``POLISH_STEPS`` times. The section's stuck set and signs must hold for
+    every evaluation; else (or if nothing shrinks) ``X`` is returned as it came.
+    """
+    n2 = X.shape[0]
+    P0, same = _map(X, stuck, signs, ctx, period, max_work)
+    if not same:
+        return X
+    F = P0 - X
+    scale = max(_max_abs(X), 1e-300)
+    res = _max_abs(F)
+    if res <= POLISH_RTOL * scale:
+        return X
+    J = np.zeros((n2, n2))
+    h = POLISH_STEP * scale
+    for i in range(n2):
+        Xp = X.copy()
+        Xp[i] += h
+        Pi, same = _map(Xp, stuck, signs, ctx, period, max_work)
+        if not same:
+            return X
+        for j in range(n2):
+            J[j, i] = (Pi[j] - P0[j]) / h
+        J[i, i] -= 1.0
+    best = X
+    for _ in range(POLISH_STEPS):
+        dX = np.linalg.lstsq(J, -F)[0]
+        if not np.all(np.isfinite(dX)):
+            break
+        Xn = best + dX
+        Pn, same = _map(Xn, stuck, signs, ctx, period, max_work)
+        if not same:
+            break
+        Fn = Pn - Xn
+        rn = _max_abs(Fn)
+        if rn >= res:
+            break
+        best = Xn
+        F = Fn
+        res = rn
+        if res <= POLISH_RTOL * scale:
+            break
+    return best
+
+
+@njit(cache=True)
 def _finish(X, stuck, signs, ctx, period, cycles, ic, out_g, out_c, max_work):
     """Run the converged period once more with the orbit check; write the fields."""
     k = signs.shape[0]
@@ -366,11 +438,14 @@ def _finish(X, stuck, signs, ctx, period, cycles, ic, out_g, out_c, max_work):
             continue
         if tot[c, CS_STUCK_TIME] >= span - ctx[CX_STICK_MIN]:
             out_c[c, OC_REGIME] = NO_MOTION
-        elif tot[c, CS_SLIP] < SLIP_RTOL * betas[c] * ctx[CX_COMPLIANCE][c]:
-            out_c[c, OC_REGIME] = NO_MOTION  # slips below the creep threshold: held
-            asymptotic = True
         elif tot[c, CS_STOPS] > 0.0:
-            out_c[c, OC_REGIME] = STICK_SLIP
+            if 0.5 * slip_range < SLIP_RTOL * betas[c] * ctx[CX_COMPLIANCE][c]:
+                # a stick-slip below the creep threshold: held (tasks.kernel.creep)
+                out_c[c, OC_REGIME] = NO_MOTION
+                out_c[c, OC_STOPS] = 0.0
+                asymptotic = True
+            else:
+                out_c[c, OC_REGIME] = STICK_SLIP
         else:
             out_c[c, OC_REGIME] = CONTINUOUS
     out_g[OG_ASYMPTOTIC] = 1.0 if asymptotic else 0.0
@@ -466,10 +541,12 @@ def simulate_point(r, beta, args, settings, out_g, out_c):
         if cycles >= min_cycles:
             if stuck == st1 and np.all(signs == sg1):
                 if _max_abs(X - X1) <= section_rtol * scale:
+                    X = polish(X, stuck, signs, ctx, 1, max_work)
                     _finish(X, stuck, signs, ctx, 1, cycles, used, out_g, out_c, max_work)
                     return X, stuck, signs
             if stuck == st2 and np.all(signs == sg2):
                 if _max_abs(X - X2) <= section_rtol * scale:
+                    X = polish(X, stuck, signs, ctx, 2, max_work)
                     _finish(X, stuck, signs, ctx, 2, cycles, used, out_g, out_c, max_work)
                     return X, stuck, signs
         if shooting and cycles >= next_shot:
