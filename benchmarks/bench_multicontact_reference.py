@@ -1,89 +1,31 @@
 """Per-contact regimes of the several-contact simulator against the independent
 reference (tasks.multicontact.reference) on a fresh seeded draw of scenes and points.
 
-Scenes: chains (walls, walls and a contact between masses, a base-excited chain)
-and random symmetric positive definite M, K (2, 3 and 4 DOF, up to three
-contacts), random beta_ratio; points r = w1 U(0.1, 2.5) (w1 the lowest natural
-frequency of the free structure), beta U(0.02, 1.2). The simulator runs at the
-default fidelity (balanced) from the held start; the reference from the same
-start. Prints per scene the regimes compared and agreeing, every difference,
-and the CPU time of each side.
+Scenes and points: tasks.multicontact.reference.draw_scenes and draw_points
+(chains with walls, a contact between masses, base excitation; random full M, K
+of 2, 3 and 4 DOF with up to three contacts; r = w1 U(0.1, 2.5), beta
+U(0.02, 1.2)). The simulator runs at the default fidelity (balanced) from the
+held start; the reference from the same start. Prints per scene the regimes
+compared and agreeing, every difference, and the CPU time of each side.
 
     python benchmarks/bench_multicontact_reference.py [points_per_scene]   (default 25)
 """
 
 from __future__ import annotations
 
-import math
 import sys
 import time
 
-import numpy as np
-from scipy.linalg import eigh
-
-from tasks.multicontact import MultiScene, classify_multi
-from tasks.multicontact.reference import agreement, random_structure
-
-SEED = 2026
-
-
-def scenes(rng: np.random.Generator) -> list[tuple[str, MultiScene]]:
-    def ratio(k):
-        return list(rng.uniform(0.3, 1.5, k))
-
-    def gk(n):
-        return list(rng.uniform(0.5, 2.0, n - 1)), list(rng.uniform(0.5, 2.0, n - 1))
-
-    out = []
-    g, kp = gk(2)
-    out.append(("chain 2dof walls m1 m2", MultiScene.chain("ground", 2, [1, 2], g, kp, ratio(2))))
-    g, kp = gk(3)
-    out.append(
-        (
-            "chain 3dof wall m1, m2-m3",
-            MultiScene.chain(["ground", "mass"], 3, [1, 2], g, kp, ratio(2)),
-        )
-    )
-    g, kp = gk(3)
-    out.append(("chain 3dof base m1 m3", MultiScene.chain("base", 3, [1, 3], g, kp, ratio(2))))
-    M, K, p = random_structure(rng, 2)
-    out.append(
-        (
-            "random 2dof x0 x1",
-            MultiScene.from_matrices(M, K, p, [("ground", 0), ("ground", 1)], beta_ratio=ratio(2)),
-        )
-    )
-    M, K, p = random_structure(rng, 3)
-    out.append(
-        (
-            "random 3dof x0, x1-x2",
-            MultiScene.from_matrices(
-                M, K, p, [("ground", 0), ("between", 1, 2)], beta_ratio=ratio(2)
-            ),
-        )
-    )
-    M, K, p = random_structure(rng, 4)
-    out.append(
-        (
-            "random 4dof x0, x1-x2, x3",
-            MultiScene.from_matrices(
-                M, K, p, [("ground", 0), ("between", 1, 2), ("ground", 3)], beta_ratio=ratio(3)
-            ),
-        )
-    )
-    return out
+from tasks.multicontact import classify_multi
+from tasks.multicontact.reference import DRAW_SEED, agreement, draw_points, draw_scenes
 
 
 def main(per_scene: int = 25) -> None:
-    rng = np.random.default_rng(SEED)
     total_c = total_a = 0
     rows = []
     all_misses = []
-    for name, scene in scenes(rng):
-        G, K = scene.mass_matrix(1.0), scene.stiffness_matrix()
-        w1 = math.sqrt(eigh(K, G, eigvals_only=True).min())
-        r = w1 * rng.uniform(0.1, 2.5, per_scene)
-        beta = rng.uniform(0.02, 1.2, per_scene)
+    for index, (name, scene) in enumerate(draw_scenes()):
+        r, beta = draw_points(scene, index, per_scene)
         t0 = time.process_time()
         res = classify_multi(scene, r, beta)
         t_sim = time.process_time() - t0
@@ -95,7 +37,9 @@ def main(per_scene: int = 25) -> None:
         all_misses += [(name, *m) for m in misses]
         total_c += compared
         total_a += agreed
-    print(f"seed {SEED}, {per_scene} points per scene, simulator fidelity balanced, held start")
+    print(
+        f"seed {DRAW_SEED}, {per_scene} points per scene, simulator fidelity balanced, held start"
+    )
     head = f"{'scene':<28}{'points':>7}{'sim nc':>7}{'ref nc':>7}{'compared':>9}{'agree':>7}"
     print(head + f"{'sim s':>8}{'ref s':>8}")
     for name, pts, snc, rnc, comp, agr, ts, tr in rows:

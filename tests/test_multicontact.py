@@ -27,7 +27,8 @@ from tasks.classifier import settings_args
 from tasks.fidelity import resolve
 from tasks.multicontact import MultiScene, classify_multi, combined_label, steady
 from tasks.multicontact import reference as ref
-from tasks.multicontact.classify import stuck_sets_cached
+from tasks.multicontact.classify import run_raw, stuck_sets_cached
+from tasks.multicontact.layout import OC_REGIME, OG_CONVERGED, OG_CYCLES, OG_IC
 
 
 def random_structure(seed: int, n: int):
@@ -239,7 +240,7 @@ def test_constructors_and_errors():
     assert res.regime.shape == (2, 2) and res.combined.shape == (2,)
 
 
-def test_held_and_rest_starts_reach_the_same_regimes():
+def test_held_rest_and_random_starts_reach_the_same_regimes():
     """One regime per point (docs/theory.md 3, the sum over contacts of docs/contacts.md 4):
     the monotonicity of friction makes coexisting periodic motions share their
     stick and slip intervals, so the start cannot change a contact's regime."""
@@ -248,8 +249,18 @@ def test_held_and_rest_starts_reach_the_same_regimes():
         M, K, p, [("ground", 0), ("between", 1, 2)], beta_ratio=[1.0, 0.6]
     )
     r, beta = points(41, 60, K, M)
-    res = classify_multi(scene, r, beta, starts=("held", "rest"))
+    res = classify_multi(scene, r, beta, starts=("held", "rest"), n_random=2)
     both = res.converged & np.all(res.regime_rest >= 0, axis=-1)
     assert both.mean() > 0.9
     np.testing.assert_array_equal(res.regime[both], res.regime_rest[both])
     assert not res.start_dependent.any()
+    # a random start is a start of its own (seeded), and reaches the same regimes
+    st = settings_args(resolve("balanced", seed=5), regimes.IC_RANDOM + 1)
+    out_g, out_c = run_raw(scene, r, beta, st)
+    np.testing.assert_array_equal(out_g[:, OG_IC], regimes.IC_RANDOM + 1)
+    again = run_raw(scene, r, beta, st)[0]
+    np.testing.assert_array_equal(out_g, again)
+    ok = (out_g[:, OG_CONVERGED] == 1.0) & res.converged
+    assert ok.mean() > 0.9
+    assert np.any(out_g[ok, OG_CYCLES] != res.cycles[ok])  # not the held run again
+    np.testing.assert_array_equal(out_c[ok, :, OC_REGIME], res.regime[ok])

@@ -381,3 +381,50 @@ def held_structure(M, K, p, contact):
     T[b, keep.index(a)] = 1.0
     index = np.array([keep.index(a if i == b else i) for i in range(n)])
     return T.T @ M @ T, T.T @ K @ T, T.T @ p, index
+
+
+#: The seed of the agreement draw (benchmarks/bench_multicontact_reference.py and
+#: its cheap subset in tests/test_multicontact_reference.py).
+DRAW_SEED = 2026
+
+
+def draw_scenes(seed: int = DRAW_SEED) -> list[tuple[str, MultiScene]]:
+    """Scenes for the agreement with the simulator, none tuned on: chains (walls,
+    a wall and a contact between masses, base excitation) and random full M, K
+    (2, 3 and 4 DOF, up to three contacts); random ratios, beta_ratio in 0.3..1.5."""
+    rng = np.random.default_rng(seed)
+
+    def ratio(k):
+        return list(rng.uniform(0.3, 1.5, k))
+
+    def chain(kind, dof, masses):
+        g, kp = (list(rng.uniform(0.5, 2.0, dof - 1)) for _ in range(2))
+        return MultiScene.chain(kind, dof, masses, g, kp, ratio(len(masses)))
+
+    def matrices(n, contacts):
+        M, K, p = random_structure(rng, n)
+        return MultiScene.from_matrices(M, K, p, contacts, beta_ratio=ratio(len(contacts)))
+
+    return [
+        ("chain 2dof walls m1 m2", chain("ground", 2, [1, 2])),
+        ("chain 3dof wall m1, m2-m3", chain(["ground", "mass"], 3, [1, 2])),
+        ("chain 3dof base m1 m3", chain("base", 3, [1, 3])),
+        ("random 2dof x0 x1", matrices(2, [("ground", 0), ("ground", 1)])),
+        ("random 3dof x0, x1-x2", matrices(3, [("ground", 0), ("between", 1, 2)])),
+        (
+            "random 4dof x0, x1-x2, x3",
+            matrices(4, [("ground", 0), ("between", 1, 2), ("ground", 3)]),
+        ),
+    ]
+
+
+def draw_points(scene: MultiScene, index: int, count: int, seed: int = DRAW_SEED):
+    """``(r, beta)`` of scene ``index`` of :func:`draw_scenes`: r = w1 U(0.1, 2.5)
+    (w1 the lowest natural frequency of the structure without contacts), beta
+    U(0.02, 1.2); one row per point, so the first points of any count coincide."""
+    from scipy.linalg import eigh
+
+    rng = np.random.default_rng([seed, index])
+    w1 = math.sqrt(eigh(scene.stiffness_matrix(), scene.mass_matrix(1.0), eigvals_only=True)[0])
+    u = rng.uniform(size=(count, 2))
+    return w1 * (0.1 + 2.4 * u[:, 0]), 0.02 + 1.18 * u[:, 1]
