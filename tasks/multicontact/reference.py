@@ -277,8 +277,9 @@ def _shoot(sys: _System, y, stuck, signs):
     """A slow transient: scipy's ``root`` on ``P(y) - y`` (one period, the section's
     stuck set and signs kept). The root is taken only if its residual is below
     ``SHOOT_RTOL`` of the motion, the period from it ends in the same set and
-    signs, and it attracts (spectral radius of the difference Jacobian of ``P``
-    at most 1 + 1e-6); else ``y`` comes back unchanged."""
+    signs, every sliding contact moves in its slip direction there, and it
+    attracts (spectral radius of the difference Jacobian of ``P`` at most
+    1 + 1e-6); else ``y`` comes back unchanged."""
     key = (stuck, tuple(signs[c] for c in range(sys.k)))
 
     def period(v):
@@ -294,6 +295,12 @@ def _shoot(sys: _System, y, stuck, signs):
     scale = max(np.abs(v).max(), 1e-300)
     if key1 != key or np.abs(v1 - v).max() > SHOOT_RTOL * scale:
         return y
+    # every sliding contact must move in its slip direction at the section (a root
+    # with a velocity of the wrong sign, or at rest, is no motion of this map)
+    vel = sys.B.T @ v[sys.n :]
+    for c in range(sys.k):
+        if c not in stuck and sys.betas[c] > 0.0 and signs[c] * vel[c] <= 1e-9 * scale:
+            return y
     h = 1e-7 * scale
     jac = np.empty((v.size, v.size))
     for i in range(v.size):
