@@ -24,7 +24,8 @@ MIN_AGREEMENT = 0.99
 def test_per_contact_regimes_agree_with_the_reference():
     scenes = draw_scenes()
     compared = agreed = 0
-    for index, count in ((1, 5), (5, 4)):  # chain: wall and masses; random 4 DOF, 3 contacts
+    # a base-excited chain, a random 4 DOF structure with 3 contacts
+    for index, count in ((2, 8), (5, 3)):
         _, scene = scenes[index]
         r, beta = draw_points(scene, index, count)
         res = classify_multi(scene, r, beta)
@@ -32,7 +33,7 @@ def test_per_contact_regimes_agree_with_the_reference():
         c, a, misses, _ = agreement(scene, r, beta, res.regime, res.converged)
         compared += c
         agreed += a
-    assert compared >= 18
+    assert compared >= 22
     assert agreed / compared >= MIN_AGREEMENT, misses
 
 
