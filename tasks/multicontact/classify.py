@@ -124,7 +124,9 @@ def classify_multi(
 
     Parameters as :func:`tasks.classify`; contact c has friction
     ``beta_ratio[c] * beta``. Starts: ``initial_condition`` / ``starts`` of
-    "held" and "rest" (``n_random`` is not available for several contacts).
+    "held" and "rest", and ``n_random`` seeded random starts
+    (:func:`tasks.multicontact.steady.random_start`); ``start_dependent`` flags a
+    point where two starts reached different regimes.
 
     Raises
     ------
@@ -138,8 +140,6 @@ def classify_multi(
     if not isinstance(fidelity, str):
         raise ValueError(f"fidelity: must be a string, got {fidelity!r}")
     resolved = resolve(fidelity, **settings)
-    if resolved.n_random:
-        raise ValueError("n_random: random starts are not available for several contacts yet")
     r_arr, beta_arr = np.broadcast_arrays(
         check_points("r", r, *R_RANGE, open_lower=False),
         check_points("beta", beta, 0.0, BETA_MAX, open_lower=False),

@@ -13,10 +13,13 @@ with events at ``b_c . x' = 0`` (sliding c) and ``|g_c| = beta_c`` (stuck c). Th
 set after an event is chosen by the rule of docs/contacts.md 3 written
 afresh (plain numpy enumeration). The held start solves the KKT system
 ``[[K - r^2 G, B], [B^T, 0]]``. Cycles run until the section state repeats
-(period 1 or 2, relative 1e-7) or ``max_cycles``; each contact's regime is read
-from the last period (stuck throughout: no motion; stuck for more than 1e-6
-at a time: stick-slip; else continuous). Slow (a pure Python loop): for
-tests only.
+(period 1 or 2, relative 1e-7) or ``max_cycles``; every 15 cycles scipy's
+``root`` seeks the fixed point of the Poincare map (taken only where it
+attracts). Each contact's regime is read from the last period (stuck
+throughout: no motion; stuck for more than 1e-6 at a time: stick-slip, unless
+its slip amplitude, half the range of ``b_c . x``, is below the creep threshold
+``SLIP_RTOL beta_c b_c^T K^-1 b_c`` of docs/contacts.md 4: no motion; else
+continuous). Slow (a pure Python loop): for tests and benchmarks only.
 """
 
 from __future__ import annotations
@@ -26,13 +29,17 @@ import math
 
 import numpy as np
 from scipy.linalg import expm
-from scipy.optimize import brentq
+from scipy.optimize import brentq, root
 
 from tasks import regimes
 from tasks.multicontact.scene import MultiScene
 
 SECTION_RTOL = 1e-7
 STICK_MIN = 1e-6
+#: Slow transients: a root of the Poincare map is sought every SHOOT_EVERY cycles
+#: and taken when its residual is below SHOOT_RTOL of the motion (and it attracts).
+SHOOT_EVERY = 15
+SHOOT_RTOL = 1e-10
 
 
 class _System:
@@ -187,13 +194,20 @@ def _phase(sys: _System, tau0, tau1, y0, stuck, signs):
 
 
 def _cycle(sys: _System, y, stuck, signs, stats):
-    """One period from tau = 0; per contact: stuck time, longest stick, slip."""
+    """One period from tau = 0; per contact: stuck time, sticks, range of ``b_c . x``
+    (its extremes are phase ends: a sliding contact's velocity keeps its sign)."""
     n = sys.n
     tau = 0.0
     stick_start = {c: (0.0 if c in stuck else None) for c in range(sys.k)}
+    d0 = sys.B.T @ y[:n]
+    for c in range(sys.k):
+        stats[c]["dmin"] = stats[c]["dmax"] = d0[c]
     for _ in range(10000):
         t1, y1, fired = _phase(sys, tau, 2 * math.pi, y, stuck, signs)
+        d1 = sys.B.T @ y1[:n]
         for c in range(sys.k):
+            stats[c]["dmin"] = min(stats[c]["dmin"], d1[c])
+            stats[c]["dmax"] = max(stats[c]["dmax"], d1[c])
             if c in stuck:
                 stats[c]["stuck"] += t1 - tau
         if not fired or t1 >= 2 * math.pi - 1e-12:
@@ -241,7 +255,9 @@ def reference_regimes(
     stuck, signs = sys.decide(0.0, x0, active, {c: 0.0 for c in range(k) if c not in active})
     signs = {c: signs.get(c, 0.0) for c in range(k)}
     history = []
-    for _ in range(max_cycles):
+    for cycle in range(max_cycles):
+        if cycle and cycle % SHOOT_EVERY == 0:
+            y = _shoot(sys, y, tuple(stuck), dict(signs))
         stats = [{"stuck": 0.0, "sticks": 0} for _ in range(k)]
         key = (tuple(stuck), tuple(signs[c] for c in range(k)))
         y_new, stuck, signs = _cycle(sys, y.copy(), tuple(stuck), dict(signs), stats)
@@ -257,19 +273,165 @@ def reference_regimes(
     return np.full(k, regimes.NOT_CONVERGED), False
 
 
+def _shoot(sys: _System, y, stuck, signs):
+    """A slow transient: scipy's ``root`` on ``P(y) - y`` (one period, the section's
+    stuck set and signs kept). The root is taken only if its residual is below
+    ``SHOOT_RTOL`` of the motion, the period from it ends in the same set and
+    signs, every sliding contact moves in its slip direction there, and it
+    attracts (spectral radius of the difference Jacobian of ``P`` at most
+    1 + 1e-6); else ``y`` comes back unchanged."""
+    key = (stuck, tuple(signs[c] for c in range(sys.k)))
+
+    def period(v):
+        stats = [{"stuck": 0.0, "sticks": 0} for _ in range(sys.k)]
+        v1, st, sg = _cycle(sys, v.copy(), stuck, dict(signs), stats)
+        return v1, (tuple(st), tuple(sg.get(c, 0.0) for c in range(sys.k)))
+
+    sol = root(lambda v: period(v)[0] - v, y, method="hybr", options={"xtol": 1e-13})
+    v = sol.x
+    if not np.all(np.isfinite(v)):
+        return y
+    v1, key1 = period(v)
+    scale = max(np.abs(v).max(), 1e-300)
+    if key1 != key or np.abs(v1 - v).max() > SHOOT_RTOL * scale:
+        return y
+    # every sliding contact must move in its slip direction at the section (a root
+    # with a velocity of the wrong sign, or at rest, is no motion of this map)
+    vel = sys.B.T @ v[sys.n :]
+    for c in range(sys.k):
+        if c not in stuck and sys.betas[c] > 0.0 and signs[c] * vel[c] <= 1e-9 * scale:
+            return y
+    h = 1e-7 * scale
+    jac = np.empty((v.size, v.size))
+    for i in range(v.size):
+        vp = v.copy()
+        vp[i] += h
+        jac[:, i] = (period(vp)[0] - v1) / h
+    if np.abs(np.linalg.eigvals(jac)).max() > 1.0 + 1e-6:
+        return y
+    return v
+
+
 def _regimes(history, sys: _System) -> np.ndarray:
     out = np.empty(sys.k, dtype=int)
     span = 2 * math.pi * len(history)
+    compliance = np.einsum("ik,ik->k", sys.B, np.linalg.solve(sys.K, sys.B))
     for c in range(sys.k):
         if sys.betas[c] == 0.0:
             out[c] = regimes.CONTINUOUS
             continue
         stuck = sum(h[2][c]["stuck"] for h in history)
         sticks = sum(h[2][c]["sticks"] for h in history)
+        amplitude = 0.5 * (
+            max(h[2][c]["dmax"] for h in history) - min(h[2][c]["dmin"] for h in history)
+        )
         if stuck >= span - 1e-6:
             out[c] = regimes.NO_MOTION
+        elif amplitude < regimes.SLIP_RTOL * sys.betas[c] * compliance[c]:
+            out[c] = regimes.NO_MOTION  # below the creep threshold (docs/contacts.md 4)
         elif sticks > 0 or stuck > STICK_MIN:
             out[c] = regimes.STICK_SLIP
         else:
             out[c] = regimes.CONTINUOUS
     return out
+
+
+def agreement(scene: MultiScene, r, beta, regime, converged, max_cycles: int = 600):
+    """Per-contact regimes of the simulator (``regime`` (n, k), ``converged`` (n,),
+    at the points ``r``, ``beta``) against :func:`reference_regimes`, compared
+    where both reached a steady state. Returns ``(compared, agreed, misses,
+    unconverged)``: regimes compared and equal, the differences as
+    ``(r, beta, contact, simulator, reference)``, points the reference left
+    unconverged."""
+    compared = agreed = unconverged = 0
+    misses = []
+    for i in range(len(r)):
+        ref, ok = reference_regimes(scene, float(r[i]), float(beta[i]), max_cycles)
+        unconverged += int(not ok)
+        if not (ok and converged[i]):
+            continue
+        for c in range(scene.n_contacts):
+            compared += 1
+            if ref[c] == regime[i][c]:
+                agreed += 1
+            else:
+                misses.append((float(r[i]), float(beta[i]), c, int(regime[i][c]), int(ref[c])))
+    return compared, agreed, misses, unconverged
+
+
+def random_structure(rng: np.random.Generator, n: int):
+    """A random structure no one tuned the code on: symmetric positive definite
+    full ``M = I + 0.3 A A^T / n`` and ``K = C C^T + n I / 2`` (A, C standard
+    normal) and a standard normal load."""
+    A = rng.normal(size=(n, n))
+    M = np.eye(n) + 0.3 * (A @ A.T) / n
+    C = rng.normal(size=(n, n))
+    K = C @ C.T + 0.5 * n * np.eye(n)
+    return M, K, rng.normal(size=n)
+
+
+def held_structure(M, K, p, contact):
+    """The structure with ``contact`` held (``("ground", j)``: row and column j
+    removed; ``("between", i, j)``: DOFs i and j merged into one coordinate at
+    the place of the first), written out by hand: ``(M', K', p', index)``,
+    ``index[i]`` the coordinate DOF i becomes (-1 for a removed one)."""
+    n = M.shape[0]
+    if contact[0] == "ground":
+        keep = [i for i in range(n) if i != contact[1]]
+        index = np.array([keep.index(i) if i in keep else -1 for i in range(n)])
+        return M[np.ix_(keep, keep)], K[np.ix_(keep, keep)], p[keep], index
+    a, b = sorted(contact[1:])
+    keep = [i for i in range(n) if i != b]
+    T = np.zeros((n, n - 1))
+    for col, i in enumerate(keep):
+        T[i, col] = 1.0
+    T[b, keep.index(a)] = 1.0
+    index = np.array([keep.index(a if i == b else i) for i in range(n)])
+    return T.T @ M @ T, T.T @ K @ T, T.T @ p, index
+
+
+#: The seed of the agreement draw (benchmarks/bench_multicontact_reference.py and
+#: its cheap subset in tests/test_multicontact_reference.py).
+DRAW_SEED = 2026
+
+
+def draw_scenes(seed: int = DRAW_SEED) -> list[tuple[str, MultiScene]]:
+    """Scenes for the agreement with the simulator, none tuned on: chains (walls,
+    a wall and a contact between masses, base excitation) and random full M, K
+    (2, 3 and 4 DOF, up to three contacts); random ratios, beta_ratio in 0.3..1.5."""
+    rng = np.random.default_rng(seed)
+
+    def ratio(k):
+        return list(rng.uniform(0.3, 1.5, k))
+
+    def chain(kind, dof, masses):
+        g, kp = (list(rng.uniform(0.5, 2.0, dof - 1)) for _ in range(2))
+        return MultiScene.chain(kind, dof, masses, g, kp, ratio(len(masses)))
+
+    def matrices(n, contacts):
+        M, K, p = random_structure(rng, n)
+        return MultiScene.from_matrices(M, K, p, contacts, beta_ratio=ratio(len(contacts)))
+
+    return [
+        ("chain 2dof walls m1 m2", chain("ground", 2, [1, 2])),
+        ("chain 3dof wall m1, m2-m3", chain(["ground", "mass"], 3, [1, 2])),
+        ("chain 3dof base m1 m3", chain("base", 3, [1, 3])),
+        ("random 2dof x0 x1", matrices(2, [("ground", 0), ("ground", 1)])),
+        ("random 3dof x0, x1-x2", matrices(3, [("ground", 0), ("between", 1, 2)])),
+        (
+            "random 4dof x0, x1-x2, x3",
+            matrices(4, [("ground", 0), ("between", 1, 2), ("ground", 3)]),
+        ),
+    ]
+
+
+def draw_points(scene: MultiScene, index: int, count: int, seed: int = DRAW_SEED):
+    """``(r, beta)`` of scene ``index`` of :func:`draw_scenes`: r = w1 U(0.1, 2.5)
+    (w1 the lowest natural frequency of the structure without contacts), beta
+    U(0.02, 1.2); one row per point, so the first points of any count coincide."""
+    from scipy.linalg import eigh
+
+    rng = np.random.default_rng([seed, index])
+    w1 = math.sqrt(eigh(scene.stiffness_matrix(), scene.mass_matrix(1.0), eigvals_only=True)[0])
+    u = rng.uniform(size=(count, 2))
+    return w1 * (0.1 + 2.4 * u[:, 0]), 0.02 + 1.18 * u[:, 1]

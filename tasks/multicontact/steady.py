@@ -35,12 +35,14 @@ from tasks.multicontact.layout import (
     CX_B,
     CX_BETAS,
     CX_COMPLIANCE,
+    CX_G,
     CX_H,
     CX_HP,
     CX_K,
     CX_LOAD_COS,
     CX_OMEGA,
     CX_P,
+    CX_R2,
     CX_SIZE,
     CX_STICK_MIN,
     CX_X,
@@ -67,6 +69,7 @@ from tasks.multicontact.layout import (
 from tasks.regimes import (
     CONTINUOUS,
     IC_HELD,
+    IC_RANDOM,
     IC_REST,
     NO_MOTION,
     NOT_CONVERGED,
@@ -84,6 +87,11 @@ SHOOT_EVERY = 20
 #: Velocity against the slip sign tolerated by the orbit check, relative to the
 #: contact's slip range (rounding of the samples next to a stop).
 ORBIT_VEL_RTOL = 1e-7
+#: The polish of a converged section (:func:`polish`): residual sought (relative to
+#: the section state), difference step of its Jacobian, chord steps at most.
+POLISH_RTOL = 1e-14
+POLISH_STEP = 1e-7
+POLISH_STEPS = 4
 
 
 @njit(cache=True)
@@ -323,6 +331,73 @@ def _newton(X, stuck, signs, cst, gst, ctx, max_work, tol):
 
 
 @njit(cache=True)
+def _map(X, stuck, signs, ctx, period, max_work):
+    """``(P^period(X), same)``: ``same`` when the period ran without a fault and
+    ended in the section's stuck set and slip signs (the branch of the map)."""
+    k = signs.shape[0]
+    cst = np.zeros((k, N_CST))
+    gst = np.zeros(N_GST)
+    s = signs.copy()
+    PX, st, _ = _period(X, stuck, s, cst, gst, ctx, period, max_work, False)
+    same = gst[GS_STATUS] == 0.0 and st == stuck and np.all(s == signs)
+    return PX, same
+
+
+@njit(cache=True)
+def polish(X, stuck, signs, ctx, period, max_work):
+    """The fixed point of ``P^period`` next to a converged section state ``X``,
+    to ``POLISH_RTOL`` (docs/contacts.md 4).
+
+    The plain iteration stops when two sections agree to ``section_rtol``; the
+    fixed point is then that close but no closer (slow points: further). A
+    chord Newton step (Jacobian of ``P^period - I`` by forward differences,
+    once; least squares, so a contact stuck through the period keeps its
+    position) is repeated while it shrinks the residual, at most
+    ``POLISH_STEPS`` times. The section's stuck set and signs must hold for
+    every evaluation; else (or if nothing shrinks) ``X`` is returned as it came.
+    """
+    n2 = X.shape[0]
+    P0, same = _map(X, stuck, signs, ctx, period, max_work)
+    if not same:
+        return X
+    F = P0 - X
+    scale = max(_max_abs(X), 1e-300)
+    res = _max_abs(F)
+    if res <= POLISH_RTOL * scale:
+        return X
+    J = np.zeros((n2, n2))
+    h = POLISH_STEP * scale
+    for i in range(n2):
+        Xp = X.copy()
+        Xp[i] += h
+        Pi, same = _map(Xp, stuck, signs, ctx, period, max_work)
+        if not same:
+            return X
+        for j in range(n2):
+            J[j, i] = (Pi[j] - P0[j]) / h
+        J[i, i] -= 1.0
+    best = X
+    for _ in range(POLISH_STEPS):
+        dX = np.linalg.lstsq(J, -F)[0]
+        if not np.all(np.isfinite(dX)):
+            break
+        Xn = best + dX
+        Pn, same = _map(Xn, stuck, signs, ctx, period, max_work)
+        if not same:
+            break
+        Fn = Pn - Xn
+        rn = _max_abs(Fn)
+        if rn >= res:
+            break
+        best = Xn
+        F = Fn
+        res = rn
+        if res <= POLISH_RTOL * scale:
+            break
+    return best
+
+
+@njit(cache=True)
 def _finish(X, stuck, signs, ctx, period, cycles, ic, out_g, out_c, max_work):
     """Run the converged period once more with the orbit check; write the fields."""
     k = signs.shape[0]
@@ -366,33 +441,91 @@ def _finish(X, stuck, signs, ctx, period, cycles, ic, out_g, out_c, max_work):
             continue
         if tot[c, CS_STUCK_TIME] >= span - ctx[CX_STICK_MIN]:
             out_c[c, OC_REGIME] = NO_MOTION
-        elif tot[c, CS_SLIP] < SLIP_RTOL * betas[c] * ctx[CX_COMPLIANCE][c]:
-            out_c[c, OC_REGIME] = NO_MOTION  # slips below the creep threshold: held
-            asymptotic = True
         elif tot[c, CS_STOPS] > 0.0:
-            out_c[c, OC_REGIME] = STICK_SLIP
+            if 0.5 * slip_range < SLIP_RTOL * betas[c] * ctx[CX_COMPLIANCE][c]:
+                # a stick-slip below the creep threshold: held (tasks.kernel.creep)
+                out_c[c, OC_REGIME] = NO_MOTION
+                out_c[c, OC_STOPS] = 0.0
+                asymptotic = True
+            else:
+                out_c[c, OC_REGIME] = STICK_SLIP
         else:
             out_c[c, OC_REGIME] = CONTINUOUS
     out_g[OG_ASYMPTOTIC] = 1.0 if asymptotic else 0.0
 
 
 @njit(cache=True)
-def start_state(ctx, ic):
+def random_start(ctx, X_held, r, beta, k_start, seed):
+    """Seeded random start number ``k_start`` on the energy scale of the forced
+    response, as one contact's (:func:`tasks.kernel.starts._random_start`): a random
+    direction of ``(x, x')`` scaled to an energy ``1/2 x^T K x + 1/2 r^2 x'^T G x'``
+    uniform in ``(0, 2 E_ref]``, ``E_ref`` the larger of the held start's and the
+    static response's. The stream depends only on ``(seed, k_start, r, beta)``."""
+    K = ctx[CX_K]
+    G = ctx[CX_G]
+    p = ctx[CX_P]
+    n = p.shape[0]
+    h = (seed * 1000003 + k_start * 7919) & 0x7FFFFFFF
+    h = (h * 31 + int(r * 1e9)) & 0x7FFFFFFF
+    h = (h * 31 + int(beta * 1e9)) & 0x7FFFFFFF
+    np.random.seed(h)  # noqa: NPY002 (numba: the legacy API only)
+    x_stat = np.linalg.solve(K, p)
+    e_static = 0.0
+    for i in range(n):
+        e_static += 0.5 * x_stat[i] * p[i]
+    e_ref = max(_energy(X_held, K, G, ctx[CX_R2]), e_static, 1e-300)
+    X = np.empty(2 * n)
+    for i in range(2 * n):
+        X[i] = np.random.standard_normal()  # noqa: NPY002
+    u = 1.0 - np.random.random()  # noqa: NPY002
+    scale = math.sqrt(2.0 * e_ref * u / max(_energy(X, K, G, ctx[CX_R2]), 1e-300))
+    for i in range(2 * n):
+        X[i] *= scale
+    return X
+
+
+@njit(cache=True)
+def _energy(X, K, G, r2):
+    """``1/2 x^T K x + 1/2 r^2 x'^T G x'``."""
+    n = K.shape[0]
+    e = 0.0
+    for i in range(n):
+        for j in range(n):
+            e += 0.5 * (X[i] * K[i, j] * X[j] + r2 * X[n + i] * G[i, j] * X[n + j])
+    return e
+
+
+@njit(cache=True)
+def start_state(ctx, ic, r, beta, seed):
     """``(X, stuck, signs, ic_used)`` of the start: held (every active contact held,
-    the rest on the held forced response; rest where that is resonant) or rest."""
+    the rest on the held forced response; rest where that is resonant), rest, or
+    the seeded random start ``ic - IC_RANDOM`` (every contact slides with the
+    sign of its velocity; one at rest relative to its contact is decided by
+    docs/contacts.md 3)."""
+    B = ctx[CX_B]
     k = ctx[CX_BETAS].shape[0]
     n = ctx[CX_P].shape[0]
     X = np.zeros(2 * n)
     used = ic
+    Xh, exists = held_response(ctx, ctx[CX_ACTIVE])
     if ic == IC_HELD:
-        Xh, exists = held_response(ctx, ctx[CX_ACTIVE])
         if exists:
             X = Xh
         else:
             used = IC_REST
     signs = np.zeros(k)
     new_signs = np.zeros(k)
-    stuck, _ = decide(X[:n], 0.0, ctx[CX_ACTIVE], signs, ctx, new_signs)
+    candidates = ctx[CX_ACTIVE]
+    if ic >= IC_RANDOM:
+        X = random_start(ctx, Xh if exists else np.zeros(2 * n), r, beta, ic - IC_RANDOM, seed)
+        for c in range(k):
+            v = 0.0
+            for i in range(n):
+                v += B[i, c] * X[n + i]
+            if (candidates >> c) & 1 and v != 0.0:
+                signs[c] = 1.0 if v > 0.0 else -1.0
+                candidates &= ~(1 << c)
+    stuck, _ = decide(X[:n], 0.0, candidates, signs, ctx, new_signs)
     return X, stuck, new_signs, used
 
 
@@ -412,7 +545,7 @@ def simulate_point(r, beta, args, settings, out_g, out_c):
     ctx = point_context(r, beta, args, settings)
     k = ctx[CX_BETAS].shape[0]
     out_g[OG_ASYMPTOTIC] = 0.0
-    X, stuck, signs, used = start_state(ctx, ic)
+    X, stuck, signs, used = start_state(ctx, ic, r, beta, int(settings[11]))
     margins = np.zeros(k)
     if ctx[CX_ACTIVE] == 0:  # no friction anywhere: linear, continuous unless resonant
         Xf, exists = held_response(ctx, 0)
@@ -466,10 +599,12 @@ def simulate_point(r, beta, args, settings, out_g, out_c):
         if cycles >= min_cycles:
             if stuck == st1 and np.all(signs == sg1):
                 if _max_abs(X - X1) <= section_rtol * scale:
+                    X = polish(X, stuck, signs, ctx, 1, max_work)
                     _finish(X, stuck, signs, ctx, 1, cycles, used, out_g, out_c, max_work)
                     return X, stuck, signs
             if stuck == st2 and np.all(signs == sg2):
                 if _max_abs(X - X2) <= section_rtol * scale:
+                    X = polish(X, stuck, signs, ctx, 2, max_work)
                     _finish(X, stuck, signs, ctx, 2, cycles, used, out_g, out_c, max_work)
                     return X, stuck, signs
         if shooting and cycles >= next_shot:
