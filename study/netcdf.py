@@ -302,7 +302,7 @@ def scene_dataset(plan: ScenePlan, study: Study) -> tuple[xr.Dataset, dict[str, 
     data_vars.update(bounds)
     for name in bounds:
         encoding[name] = {"zlib": True, "complevel": 4}
-    if spec.structure is not None:  # what recomputes it (docs/results.md)
+    if spec.structure is not None and not spec.sweeps:  # what recomputes it (docs/results.md)
         arrays = (contacts.structure_variables if multi else structure_variables)(spec.structure)
         for name, (vdims, values, vattrs) in arrays.items():
             data_vars[name] = xr.Variable(vdims, values, vattrs)
