@@ -186,9 +186,6 @@ def test_door_names_the_field():
     assert "scene[0].contact: one kind per contact_mass (2), got 3" in refused(
         {**chain, "contact": ["ground", "ground", "mass"]}
     )
-    assert "scene[0].gamma: a sweep is not available with several contacts" in refused(
-        {**chain, "gamma": {"start": 0.5, "stop": 1.0, "num": 2}}
-    )
     assert "scene[0].mode: 'trace' is not available for several contacts" in refused(
         {**chain, "mode": "trace", "beta": [0.1, 0.2]}
     )

@@ -1,0 +1,151 @@
+"""Several contacts through studies beyond one fixed plane (docs/studies.md#several-contacts):
+sweeps of gamma and kappa on chains, a beam with two contact points, the door.
+
+One ``study run`` through the CLI on a local cluster; the written netCDF, opened
+with xarray, equals :func:`tasks.classify` on scenes built here from the TOML
+values (not from the file), and ``regime_combined`` its stated rule.
+"""
+
+from __future__ import annotations
+
+import json
+import tomllib
+
+import numpy as np
+import pytest
+import xarray as xr
+from test_study_contacts import refused, study_cli
+
+from study import Study
+from tasks import classify
+from tasks.multicontact import MultiScene
+from tasks.structures import beam
+
+STUDY = """
+[study]
+name = "contacts_more"
+fidelity = "fast"
+
+[[scene]]
+name = "swept"
+contact = ["ground", "mass"]
+dof = 3
+contact_mass = [1, 2]
+beta_ratio = [1.0, 0.5]
+gamma = {values = [0.5, 2.0]}
+kappa = {values = [0.7, 1.4, 3.0]}
+r = {start = 0.3, stop = 2.2, num = 5}
+beta = {start = 0.05, stop = 1.0, num = 3}
+
+[[scene]]
+name = "beam"
+beam = {n_elements = 10, contact_node = [5, 10], modes = 3}
+beta_ratio = [1.0, 0.5]
+r = {start = 0.3, stop = 2.8, num = 6}
+beta = {start = 0.0, stop = 2.5, num = 4}
+"""
+
+
+@pytest.fixture(scope="module")
+def written(tmp_path_factory):
+    ws = tmp_path_factory.mktemp("contacts_more")
+    (ws / "s.toml").write_text(STUDY)
+    done = study_cli("run", "s.toml", "-o", "s.nc", "--workers", "2", "--quiet", cwd=ws)
+    assert done.returncode == 0, done.stderr[-3000:]
+    tree = xr.open_datatree(ws / "s.nc")
+    yield ws, tree
+    tree.close()
+
+
+def combined(regime: xr.DataArray) -> np.ndarray:
+    """``sum_c regime_c 3^c``, the most severe negative code where one is undetermined."""
+    reg = regime.transpose("contact", ...).values.astype(int)
+    code = sum(reg[c] * 3**c for c in range(reg.shape[0]))
+    return np.where(reg.min(axis=0) < 0, reg.min(axis=0), code)
+
+
+def test_a_sweep_of_gamma_and_kappa_equals_classify_at_every_ratio(written):
+    _, tree = written
+    ds = tree["swept"].to_dataset()
+    assert ds.regime.dims == ("gamma", "kappa", "contact", "beta", "r")
+    assert ds.regime_combined.dims == ("gamma", "kappa", "beta", "r")
+    assert ds.dissipation.dims == ("gamma", "kappa", "contact", "beta", "r")
+    np.testing.assert_array_equal(ds.gamma.values, [0.5, 2.0])
+    np.testing.assert_array_equal(ds.kappa.values, [0.7, 1.4, 3.0])
+    assert list(ds.contact_where.values) == ["ground 0", "between 1 2"]
+    assert "mass_matrix" not in ds  # a swept chain is rebuilt from its scene attribute
+    chain = json.loads(ds.attrs["scene"])["chain"]
+    assert chain == {
+        "contact": ["ground", "mass"],
+        "contact_mass": [1, 2],
+        "gamma": [0.5, 2.0],
+        "kappa": [0.7, 1.4, 3.0],
+    }
+    r, beta = np.meshgrid(ds.r.values, ds.beta.values)  # (beta, r)
+    for i, g in enumerate(ds.gamma.values):
+        for j, k in enumerate(ds.kappa.values):
+            scene = MultiScene.chain(
+                ["ground", "mass"], 3, [1, 2], gamma=g, kappa=k, beta_ratio=[1.0, 0.5]
+            )
+            res = classify(scene, r, beta, fidelity="fast")
+            at = ds.isel(gamma=i, kappa=j)
+            np.testing.assert_array_equal(at.regime.values, np.moveaxis(res.regime, -1, 0))
+            np.testing.assert_allclose(
+                at.slip_amplitude.values,
+                np.moveaxis(res.slip_amplitude, -1, 0),
+                rtol=1e-12,
+                equal_nan=True,
+            )
+    np.testing.assert_array_equal(ds.regime_combined.values, combined(ds.regime))
+    # the ratios move the map: not every (gamma, kappa) plane is the same
+    planes = ds.regime_combined.values.reshape(6, -1)
+    assert len({p.tobytes() for p in planes}) >= 3
+
+
+def test_the_beam_with_two_contacts_equals_classify(written):
+    _, tree = written
+    ds = tree["beam"].to_dataset()
+    assert ds.regime.dims == ("contact", "beta", "r")
+    assert list(ds.contact_where.values) == ["ground 0", "ground 1"]
+    attr = json.loads(ds.attrs["scene"])
+    assert attr["beam"]["contact_node"] == [5, 10]
+    assert attr["description"] == "cantilever beam, contacts at nodes 5, 10"
+    scene = beam(10, contact_node=[5, 10], modes=3, beta_ratio=[1.0, 0.5])
+    np.testing.assert_allclose(ds.mass_matrix.values, scene.mass_matrix(), rtol=1e-15)
+    r, beta = np.meshgrid(ds.r.values, ds.beta.values)
+    res = classify(scene, r, beta, fidelity="fast")
+    np.testing.assert_array_equal(ds.regime.values, np.moveaxis(res.regime, -1, 0))
+    np.testing.assert_array_equal(ds.regime_combined.values, combined(ds.regime))
+    assert len(np.unique(ds.regime_combined.values)) >= 3
+
+
+def test_provenance_rebuilds_the_study():
+    study = Study.from_dict(tomllib.loads(STUDY))
+    again = Study.from_dict(tomllib.loads(study.to_toml()))
+    assert again == study
+    assert [s.structure for s in again.scenes] == [s.structure for s in study.scenes]
+    assert again.scenes[0].n_points == 2 * 3 * 5 * 3
+
+
+def test_door_of_swept_and_beam_scenes():
+    chain = {"contact": "ground", "dof": 2, "contact_mass": [1, 2]}
+    assert "scene[0].gamma: every gamma must be in [1e-06, 1e+06], got 1e+07" in refused(
+        {**chain, "gamma": {"values": [0.5, 1e7]}}
+    )
+    assert "scene[0].mode: 'trace' is not available for several contacts" in refused(
+        {**chain, "mode": "trace", "beta": [0.1, 0.2]}
+    )
+    two = {"n_elements": 6, "contact_node": [3, 6]}
+    assert "scene[0].beam.contact_node: a node is listed twice" in refused(
+        {"beam": {**two, "contact_node": [3, 3]}}
+    )
+    assert "scene[0].beam.contact_node[1]: " in refused({"beam": {**two, "contact_node": [3, "x"]}})
+    assert "scene[0].beta_ratio: expected one number per contact (2), got 3" in refused(
+        {"beam": two, "beta_ratio": [1.0, 0.5, 0.2]}
+    )
+    assert "scene[0].beta_ratio: applies to scenes with several contacts" in refused(
+        {"beam": {"n_elements": 6, "contact_node": 3}, "beta_ratio": [1.0]}
+    )
+    assert "scene[0].damping: scenes with several contacts are undamped" in refused(
+        {"beam": two, "damping": {"rayleigh": [0.01, 0.0]}}
+    )
