@@ -1,9 +1,14 @@
 """Several contacts through studies beyond one fixed plane (docs/studies.md#several-contacts):
-sweeps of gamma and kappa on chains, a beam with two contact points, the door.
+sweeps of gamma and kappa on chains, a beam with two contact points, the door, and
+the closed forms of one contact with the others held (analysis.contact_bounds).
 
 One ``study run`` through the CLI on a local cluster; the written netCDF, opened
 with xarray, equals :func:`tasks.classify` on scenes built here from the TOML
-values (not from the file), and ``regime_combined`` its stated rule.
+values (not from the file), and ``regime_combined`` its stated rule. The held
+structure of a contact is checked against the chain held by hand (a wall: row
+and column removed; a contact between masses: the pair merged); where every other
+contact is stuck the simulated regime is the held structure's, which its closed
+forms predict; every contact is stuck exactly above the largest held motion bound.
 """
 
 from __future__ import annotations
@@ -16,9 +21,12 @@ import pytest
 import xarray as xr
 from test_study_contacts import refused, study_cli
 
+from analysis import boundaries, contact_bounds
+from analysis.contacts import planes
 from study import Study
-from tasks import classify
+from tasks import Scene, classify
 from tasks.multicontact import MultiScene
+from tasks.scene import stuck_basis
 from tasks.structures import beam
 
 STUDY = """
@@ -149,3 +157,53 @@ def test_door_of_swept_and_beam_scenes():
     assert "scene[0].damping: scenes with several contacts are undamped" in refused(
         {"beam": two, "damping": {"rayleigh": [0.01, 0.0]}}
     )
+
+
+def test_held_structure_is_the_chain_held_by_hand():
+    two = MultiScene.chain("ground", 2, [1, 2], kappa=0.5)
+    held = contact_bounds.held_scene(two, 0)  # mass 2 held: mass 1 on k1 + k2
+    np.testing.assert_allclose(held.structure.mass, [[1.0]], rtol=1e-14)
+    np.testing.assert_allclose(held.structure.stiffness, [[1.5]], rtol=1e-14)
+    assert contact_bounds.held_scene(two, 1) is None  # mass 1 held: the wall takes the load
+    mixed = MultiScene.chain(["ground", "mass"], 3, [1, 2], gamma=0.5, kappa=1.4)
+    M, K = mixed.mass_matrix(), mixed.stiffness_matrix()
+    T, _ = stuck_basis(3, (1, 2))  # masses 2 and 3 merged
+    merged = Scene.from_matrices(T.T @ M @ T, T.T @ K @ T, T.T @ mixed.load_vector(), ("ground", 0))
+    r = np.linspace(0.3, 2.5, 23)
+    for truth, ours in zip(
+        boundaries(merged, r, method="exact"),
+        boundaries(contact_bounds.held_scene(mixed, 0), r, method="exact"),
+        strict=True,
+    ):
+        np.testing.assert_allclose(ours, truth, rtol=1e-9)
+
+
+def test_held_closed_forms_predict_where_the_others_are_stuck(written):
+    _, tree = written
+    applied = 0
+    for name in ("swept", "beam"):
+        for label, plane in planes(tree[name].to_dataset()):
+            scene = contact_bounds.scene_of(plane)
+            for n, agree in contact_bounds.held_agreement(plane, scene):
+                assert agree == n, (name, label)
+                applied += n
+            # every contact stuck exactly above the largest held motion bound
+            _, motion = contact_bounds.held_bounds(scene, plane.r.values)
+            above = plane.beta.values[:, None] >= contact_bounds.all_stuck_bound(motion) * (
+                1 - contact_bounds.EDGE_RTOL
+            )
+            np.testing.assert_array_equal(plane.regime_combined.values == 0, above)
+    assert applied >= 50
+
+
+def test_report_draws_the_held_bounds_per_plane(written):
+    ws, _ = written
+    done = study_cli("report", "s.nc", "-o", "rep", cwd=ws)
+    assert done.returncode == 0, done.stderr[-3000:]
+    text = (ws / "rep" / "report.md").read_text()
+    assert "### Closed forms with the other contacts held" in text
+    assert "| 0: ground 0 (beta_ratio 1) | 36 | 36 | 100.0 % |" in text
+    assert f"Figures of the first {4} of 6 planes." in text
+    for k in range(4):
+        assert (ws / "rep" / f"swept_contacts_{k}.png").stat().st_size > 10_000
+    assert (ws / "rep" / "beam_contacts.png").stat().st_size > 10_000

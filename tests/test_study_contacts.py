@@ -159,7 +159,7 @@ def test_report_has_a_section_per_contact(written):
     text = (ws / "rep" / "report.md").read_text()
     assert "### Contact 0: ground 0 (beta_ratio 1)" in text
     assert "### Contact 1: between 1 2 (beta_ratio 2)" in text
-    assert "No closed form bounds the regimes of several contacts" in text
+    assert "with the **other contacts held** are drawn on each contact's map" in text
     assert (ws / "rep" / "two_walls_contacts.png").stat().st_size > 10_000
 
 
