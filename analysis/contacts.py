@@ -168,6 +168,20 @@ def _agreement_rows(counts: list[tuple[int, int]], where: list[str]) -> list[str
     return rows + [""]
 
 
+def adaptive_line(ds: xr.Dataset) -> str:
+    """``- adaptive: ...`` of an adaptive map refined on the combined label."""
+    n, sim = int(ds["simulated"].size), int(ds["simulated"].values.sum())
+    line = (
+        f"- adaptive: {sim} of {n} points simulated ({100.0 * sim / n:.1f} %), refined on "
+        "`regime_combined`"
+    )
+    sampled = int(ds.attrs.get("verification_sampled", 0))
+    if sampled:
+        agree = int(ds.attrs["verification_agree"])
+        line += f"; verification: {agree} of {sampled} inferred labels confirmed by simulation"
+    return line
+
+
 def section(name: str, ds: xr.Dataset, out_dir: Path, stem: str) -> tuple[list[str], list[Path]]:
     """The report section of a several-contact scene and its figures."""
     k = ds.sizes["contact"]
@@ -193,6 +207,8 @@ def section(name: str, ds: xr.Dataset, out_dir: Path, stem: str) -> tuple[list[s
         n_planes += 1
     lines = [f"## Scene `{name}`", ""]
     lines += [f"- {key}: `{ds.attrs[key]}`" for key in ("dof", "mode", "scene") if key in ds.attrs]
+    if "simulated" in ds:  # an adaptive map (docs/adaptive.md): refined on regime_combined
+        lines.append(adaptive_line(ds))
     lines += [""] + [f"![{p.stem}]({p.name})" for p in images] + [""]
     if n_planes > MAX_PLANES:
         lines += [f"Figures of the first {MAX_PLANES} of {n_planes} planes.", ""]

@@ -46,6 +46,9 @@ POINT_FIELDS: tuple[str, ...] = (
 )
 #: The combined label: one code per point (:func:`combined_attrs`).
 COMBINED = "regime_combined"
+#: Fields that must agree within a uniform cell of an adaptive map of several contacts
+#: (:class:`tasks.adaptive.Refinement`): the combined label and its flags.
+KEY_FIELDS: tuple[str, ...] = (COMBINED, "converged", "start_dependent")
 
 #: dtypes of every field of a several-contact scene, in the order they are written.
 MULTI_DTYPES: dict[str, str] = {
@@ -110,9 +113,8 @@ def chain_at(spec, ratios: dict[str, float]) -> MultiScene:
 
 def check_mode(scene: object, mode: str) -> None:
     """Refuse ``mode = "trace"`` for several contacts (one line naming ``mode``): a traced
-    boundary is the beta at which one contact's regime changes at each r, and with
-    several contacts the regimes change on several boundaries that cross
-    (docs/contacts.md 8)."""
+    boundary is the one beta at which the regime changes at each r, and with several
+    contacts each contact has its own boundaries, which cross (docs/contacts.md 8)."""
     if is_multi(scene) and mode == "trace":
         raise StudyError(
             "mode",

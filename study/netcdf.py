@@ -295,7 +295,8 @@ def scene_dataset(plan: ScenePlan, study: Study) -> tuple[xr.Dataset, dict[str, 
             fill = np.full(vshape, _fill(dt), dtype=dt)
         else:
             fill = da.full(vshape, _fill(dt), dtype=dt, chunks=_fill_chunks_shape(vshape, grid))
-        vattrs = contacts.attrs(name, spec.structure.n_contacts) if multi else _attrs(name)
+        of_contacts = multi and name in contacts.MULTI_DTYPES
+        vattrs = contacts.attrs(name, spec.structure.n_contacts) if of_contacts else _attrs(name)
         data_vars[name] = xr.Variable(vdims, fill, vattrs)
         encoding[name] = enc
     bounds = _boundary_vars(plan, axes)

@@ -1,6 +1,7 @@
 """Several contacts through studies beyond one fixed plane (docs/studies.md#several-contacts):
-sweeps of gamma and kappa on chains, a beam with two contact points, the door, and
-the closed forms of one contact with the others held (analysis.contact_bounds).
+sweeps of gamma and kappa on chains, a beam with two contact points, adaptive maps
+refined on the combined label (against the dense grid), the door, and the closed
+forms of one contact with the others held (analysis.contact_bounds).
 
 One ``study run`` through the CLI on a local cluster; the written netCDF, opened
 with xarray, equals :func:`tasks.classify` on scenes built here from the TOML
@@ -44,6 +45,29 @@ gamma = {values = [0.5, 2.0]}
 kappa = {values = [0.7, 1.4, 3.0]}
 r = {start = 0.3, stop = 2.2, num = 5}
 beta = {start = 0.05, stop = 1.0, num = 3}
+
+[[scene]]
+name = "dense"
+contact = "ground"
+dof = 2
+contact_mass = [1, 2]
+beta_ratio = [1.0, 0.5]
+kappa = 0.5
+r = {start = 0.2, stop = 2.4, num = 41}
+beta = {start = 0.0, stop = 1.6, num = 21}
+
+[[scene]]
+name = "adaptive"
+contact = "ground"
+dof = 2
+contact_mass = [1, 2]
+beta_ratio = [1.0, 0.5]
+kappa = 0.5
+mode = "adaptive"
+coarse_step = 4
+verify_fraction = 0.2
+r = {start = 0.2, stop = 2.4, num = 41}
+beta = {start = 0.0, stop = 1.6, num = 21}
 
 [[scene]]
 name = "beam"
@@ -127,6 +151,25 @@ def test_the_beam_with_two_contacts_equals_classify(written):
     assert len(np.unique(ds.regime_combined.values)) >= 3
 
 
+def test_adaptive_map_of_two_contacts_equals_the_dense_grid(written):
+    _, tree = written
+    dense, ada = tree["dense"].to_dataset(), tree["adaptive"].to_dataset()
+    assert ada.regime.dims == ("contact", "beta", "r")
+    assert ada.regime_combined.dims == ada.simulated.dims == ("beta", "r")
+    sim = ada.simulated.values
+    assert 0 < sim.sum() < sim.size  # some points inferred
+    for name in ("regime", "dissipation"):  # simulated points: the dense grid's values
+        np.testing.assert_array_equal(ada[name].values[:, sim], dense[name].values[:, sim])
+    np.testing.assert_array_equal(ada.regime_combined.values, combined(ada.regime))
+    assert len(np.unique(dense.regime_combined.values)) >= 4
+    agree = ada.regime_combined.values == dense.regime_combined.values
+    assert agree.mean() >= 0.99
+    # the verification sample: its flags count what the attributes say
+    flags = ada.verification.values
+    assert ada.attrs["verification_sampled"] == int((flags > 0).sum()) > 0
+    assert ada.attrs["verification_agree"] == int((flags == 1).sum())
+
+
 def test_provenance_rebuilds_the_study():
     study = Study.from_dict(tomllib.loads(STUDY))
     again = Study.from_dict(tomllib.loads(study.to_toml()))
@@ -181,7 +224,7 @@ def test_held_structure_is_the_chain_held_by_hand():
 def test_held_closed_forms_predict_where_the_others_are_stuck(written):
     _, tree = written
     applied = 0
-    for name in ("swept", "beam"):
+    for name in ("swept", "beam", "dense"):
         for label, plane in planes(tree[name].to_dataset()):
             scene = contact_bounds.scene_of(plane)
             for n, agree in contact_bounds.held_agreement(plane, scene):
@@ -207,3 +250,5 @@ def test_report_draws_the_held_bounds_per_plane(written):
     for k in range(4):
         assert (ws / "rep" / f"swept_contacts_{k}.png").stat().st_size > 10_000
     assert (ws / "rep" / "beam_contacts.png").stat().st_size > 10_000
+    assert (ws / "rep" / "adaptive_contacts.png").stat().st_size > 10_000
+    assert "refined on `regime_combined`; verification:" in text
