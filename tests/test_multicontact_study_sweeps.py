@@ -20,7 +20,7 @@ import tomllib
 import numpy as np
 import pytest
 import xarray as xr
-from test_study_contacts import refused, study_cli
+from test_study_contacts import refused, run_study_file, study_cli
 
 from analysis import boundaries, contact_bounds
 from analysis.contacts import planes
@@ -30,6 +30,15 @@ from tasks.multicontact import MultiScene
 from tasks.scene import stuck_basis
 from tasks.structures import beam
 
+#: The plane of the dense grid and of the adaptive map (41 x 21 points).
+TWO_WALLS = """contact = "ground"
+dof = 2
+contact_mass = [1, 2]
+beta_ratio = [1.0, 0.5]
+kappa = 0.5
+r = {start = 0.2, stop = 2.4, num = 41}
+beta = {start = 0.0, stop = 1.6, num = 21}
+"""
 STUDY = """
 [study]
 name = "contacts_more"
@@ -48,43 +57,26 @@ beta = {start = 0.05, stop = 1.0, num = 3}
 
 [[scene]]
 name = "dense"
-contact = "ground"
-dof = 2
-contact_mass = [1, 2]
-beta_ratio = [1.0, 0.5]
-kappa = 0.5
-r = {start = 0.2, stop = 2.4, num = 41}
-beta = {start = 0.0, stop = 1.6, num = 21}
-
+{TWO_WALLS}
 [[scene]]
 name = "adaptive"
-contact = "ground"
-dof = 2
-contact_mass = [1, 2]
-beta_ratio = [1.0, 0.5]
-kappa = 0.5
 mode = "adaptive"
 coarse_step = 4
 verify_fraction = 0.2
-r = {start = 0.2, stop = 2.4, num = 41}
-beta = {start = 0.0, stop = 1.6, num = 21}
-
+{TWO_WALLS}
 [[scene]]
 name = "beam"
 beam = {n_elements = 10, contact_node = [5, 10], modes = 3}
 beta_ratio = [1.0, 0.5]
 r = {start = 0.3, stop = 2.8, num = 6}
 beta = {start = 0.0, stop = 2.5, num = 4}
-"""
+""".replace("{TWO_WALLS}", TWO_WALLS)
 
 
 @pytest.fixture(scope="module")
 def written(tmp_path_factory):
     ws = tmp_path_factory.mktemp("contacts_more")
-    (ws / "s.toml").write_text(STUDY)
-    done = study_cli("run", "s.toml", "-o", "s.nc", "--workers", "2", "--quiet", cwd=ws)
-    assert done.returncode == 0, done.stderr[-3000:]
-    tree = xr.open_datatree(ws / "s.nc")
+    tree = run_study_file(ws, STUDY)
     yield ws, tree
     tree.close()
 

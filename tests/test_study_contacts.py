@@ -83,13 +83,19 @@ def study_cli(*args: str, cwd: Path) -> subprocess.CompletedProcess:
     )
 
 
+def run_study_file(ws: Path, text: str) -> xr.DataTree:
+    """``study run`` of the study ``text`` in ``ws`` (a local cluster of 2 workers): the
+    written ``s.nc``, opened."""
+    (ws / "s.toml").write_text(text)
+    done = study_cli("run", "s.toml", "-o", "s.nc", "--workers", "2", "--quiet", cwd=ws)
+    assert done.returncode == 0, done.stderr[-3000:]
+    return xr.open_datatree(ws / "s.nc")
+
+
 @pytest.fixture(scope="module")
 def written(tmp_path_factory):
     ws = tmp_path_factory.mktemp("contacts")
-    (ws / "s.toml").write_text(STUDY)
-    done = study_cli("run", "s.toml", "-o", "s.nc", "--workers", "2", "--quiet", cwd=ws)
-    assert done.returncode == 0, done.stderr[-3000:]
-    tree = xr.open_datatree(ws / "s.nc")
+    tree = run_study_file(ws, STUDY)
     yield ws, tree
     tree.close()
 
