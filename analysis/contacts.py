@@ -130,7 +130,11 @@ def contacts_figure(ds: xr.Dataset, title: str = "", scene: MultiScene | None = 
         ]
     ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2, fontsize=7)
     axes[-1].legend(
-        handles=figures.regime_handles(sorted(present)) + lines, loc="upper left", fontsize=7
+        handles=figures.regime_handles(sorted(present)) + lines,
+        loc="upper center",
+        bbox_to_anchor=(0.5, -0.14),
+        ncol=2,
+        fontsize=7,
     )
     if title:
         fig.suptitle(title)
