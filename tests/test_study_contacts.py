@@ -19,10 +19,12 @@ through the CLI on a local cluster for the whole module.
 
 from __future__ import annotations
 
+import io
 import json
 import os
 import subprocess
 import sys
+import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -274,8 +276,42 @@ def test_door_names_the_field():
     )
 
 
+def test_adaptive_map_of_two_contacts_resumes_after_interruption(written, tmp_path, monkeypatch):
+    """Interrupted after two point lists, then run again: the saved lists answer the
+    refinement and the map is the uninterrupted one's (the module's CLI run)."""
+    from study import StudyInterrupted, run_study
+    from study.adaptive import AdaptivePlan
+
+    _, tree = written
+    text = '[study]\nname = "resume"\nfidelity = "fast"\n\n'
+    text += STUDY[
+        STUDY.index('[[scene]]\nname = "adaptive"') : STUDY.index('[[scene]]\nname = "beam"')
+    ]
+    study = Study.from_dict(tomllib.loads(text))
+    out = tmp_path / "resume.nc"
+    real_accept, kept = AdaptivePlan.accept, []
+
+    def interrupted_accept(self, unit, *args, **kwargs):
+        real_accept(self, unit, *args, **kwargs)
+        kept.append(unit.idx.size)
+        if len(kept) == 2:
+            raise KeyboardInterrupt
+
+    monkeypatch.setattr(AdaptivePlan, "accept", interrupted_accept)
+    with pytest.raises(StudyInterrupted):
+        run_study(study, out, progress=False, stream=io.StringIO())
+    monkeypatch.setattr(AdaptivePlan, "accept", real_accept)
+    log = io.StringIO()
+    run_study(study, out, progress=False, stream=log)
+    line = next(x for x in log.getvalue().splitlines() if "saved points reused" in x)
+    assert int(line.split(" saved points reused")[0].split()[-1].replace(",", "")) == sum(kept)
+    with xr.open_dataset(out) as again:
+        whole = tree["adaptive"].to_dataset()
+        for name in ("regime", "regime_combined", "simulated", "verification", "dissipation"):
+            np.testing.assert_array_equal(again[name].values, whole[name].values, err_msg=name)
+
+
 def test_provenance_rebuilds_the_study():
-    import tomllib
 
     study = Study.from_dict(tomllib.loads(STUDY))
     again = Study.from_dict(tomllib.loads(study.to_toml()))
