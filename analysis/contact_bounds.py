@@ -2,24 +2,26 @@
 
 The closed forms of one contact (docs/theory.md 4, :func:`analysis.boundaries`)
 apply to contact c of a scene with several contacts on the structure with the
-**other contacts held** (their relative displacements frozen): that one-contact
-structure (:func:`held_scene`) is the motion of the whole scene whenever every
-other contact is stuck for the whole period. Hence
+**other contacts held** (their relative displacements frozen; a frictionless
+contact never sticks and stays free): that one-contact structure
+(:func:`held_scene`) is the motion of the whole scene whenever every other
+contact with friction is stuck for the whole period. Hence
 
-* where every other contact is in no motion, contact c's regime is that of the
-  held structure, and its closed forms (``method = "exact"``: the exact motion
-  bound and the continuous bound of docs/theory.md 4.3) predict it
+* where every other contact with friction is in no motion, contact c's regime is
+  that of the held structure, and its closed forms (``method = "exact"``: the
+  exact motion bound and the continuous bound of docs/theory.md 4.3) predict it
   (:func:`held_agreement` counts how often);
-* every contact stays stuck exactly when ``beta >= max_c beta_motion_c / beta_ratio_c``
-  with ``beta_motion_c`` the motion bound of contact c with the others held (all
-  contacts held, each force within its limit: the held margin of
-  docs/contacts.md 4), the boundary of the combined label 0
-  (:func:`all_stuck_bound`).
+* every contact with friction stays stuck exactly when
+  ``beta >= max_c beta_motion_c / beta_ratio_c`` with ``beta_motion_c`` the motion
+  bound of contact c with the others held (all of them held, each force within
+  its limit: the held margin of docs/contacts.md 4); with every contact frictional
+  this is the boundary of the combined label 0 (:func:`all_stuck_bound`).
 
 With the **other contacts free** (removed) the closed forms bound nothing unless
-the others are frictionless: a sliding contact still carries its friction
-``beta_ratio_c' beta``, of the order of contact c's own limit, and it may raise or
-lower the load contact c carries. They are not drawn.
+the others are frictionless (then they are the held structure's above): a
+sliding contact still carries its friction ``beta_ratio_c' beta``, of the order
+of contact c's own limit, and it may raise or lower the load contact c carries.
+They are not drawn.
 """
 
 from __future__ import annotations
@@ -42,6 +44,12 @@ METHOD = "exact"
 EDGE_RTOL = 1e-9
 
 
+def held_by(scene: MultiScene, c: int) -> list[int]:
+    """The contacts held with contact ``c``: the others with friction (a frictionless
+    contact never sticks; it stays free)."""
+    return [o for o, ratio in enumerate(scene.beta_ratio) if o != c and ratio > 0.0]
+
+
 def held_scene(scene: MultiScene, c: int) -> Scene | None:
     """The one-contact scene of contact ``c`` with the other contacts held (None when the
     held contacts take the whole load: nothing moves, contact c stays stuck).
@@ -52,7 +60,7 @@ def held_scene(scene: MultiScene, c: int) -> Scene | None:
     ``T^T p`` (a base load: the influence vector ``u_h`` with ``M_h u_h = T^T M u``).
     """
     B = scene.contact_vectors()
-    others = [o for o in range(scene.n_contacts) if o != c]
+    others = held_by(scene, c)
     N = null_space(B[:, others].T)  # x = N y keeps the others' relative displacements at 0
     a = N.T @ B[:, c]
     T = N @ np.column_stack([a / (a @ a), null_space(a[None, :])])
@@ -86,15 +94,20 @@ def held_bounds(scene: MultiScene, r: np.ndarray) -> tuple[np.ndarray, np.ndarra
 
 
 def all_stuck_bound(motion: np.ndarray) -> np.ndarray:
-    """The beta above which every contact stays stuck (combined label 0): the largest
-    held motion bound (:func:`held_bounds`) over the contacts with friction."""
-    return np.nanmax(motion, axis=0)
+    """The beta above which every contact with friction stays stuck (combined label 0
+    when every contact has friction): the largest held motion bound
+    (:func:`held_bounds`) over the contacts with friction (NaN if none has)."""
+    top = np.where(np.isnan(motion), -np.inf, motion).max(axis=0)
+    return np.where(np.isfinite(top), top, np.nan)
 
 
 def where_held(ds: xr.Dataset, c: int, r: np.ndarray, beta: np.ndarray) -> np.ndarray:
     """The curve ``beta(r)`` of contact ``c`` where it means something: NaN wherever the
-    nearest grid point of the (r, beta) plane ``ds`` has another contact not in no motion."""
-    reg = np.delete(ds["regime"].transpose("contact", "r", "beta").values, c, axis=0)
+    nearest grid point of the (r, beta) plane ``ds`` has another contact with friction
+    not in no motion."""
+    scene_ratio = ds["beta_ratio"].values
+    others = [o for o in range(scene_ratio.size) if o != c and scene_ratio[o] > 0.0]
+    reg = ds["regime"].transpose("contact", "r", "beta").values[others]
     held = np.all(reg == regimes.NO_MOTION, axis=0)
     grid_r, grid_b = ds["r"].values, ds["beta"].values
     ir = np.abs(np.asarray(r)[:, None] - grid_r[None, :]).argmin(axis=1)
@@ -134,7 +147,8 @@ def scene_of(ds: xr.Dataset) -> MultiScene | None:
 
 
 def held_agreement(ds: xr.Dataset, scene: MultiScene) -> list[tuple[int, int]]:
-    """Per contact c: (points where every other contact is in no motion and contact c's
+    """Per contact c: (points where every other contact with friction is in no motion and
+    contact c's
     regime is determined, of them those whose regime the held closed forms predict, at
     beta or within :data:`EDGE_RTOL` of it)."""
     r = ds["r"].values
@@ -142,7 +156,7 @@ def held_agreement(ds: xr.Dataset, scene: MultiScene) -> list[tuple[int, int]]:
     rr, bb = np.meshgrid(r, ds["beta"].values)
     out = []
     for c, ratio in enumerate(scene.beta_ratio):
-        others = np.delete(reg, c, axis=0)
+        others = reg[held_by(scene, c)]
         where = np.all(others == regimes.NO_MOTION, axis=0) & (reg[c] >= 0) & (ratio > 0.0)
         if not where.any():
             out.append((0, 0))

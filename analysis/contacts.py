@@ -31,14 +31,15 @@ from tasks.multicontact import MultiScene
 #: What the drawn closed forms bound, in every several-contact section.
 BOUNDS_NOTE = (
     "Closed forms of one contact (docs/theory.md 4, exact method) with the **other "
-    "contacts held** are drawn on each contact's map (dashed: continuous bound, solid: "
-    "motion bound, in units of beta, i.e. divided by the contact's beta_ratio) only where "
-    "every other contact is in no motion: there the motion is the held structure's and "
-    "they give that contact's regime; elsewhere they bound nothing. On the combined map, the "
-    "largest held motion bound is the exact boundary of every contact stuck (combined "
-    "label 0, the held margin of docs/contacts.md 4). With the other contacts **free** "
-    "(removed) the closed forms bound nothing unless the others are frictionless (a "
-    "sliding contact still carries its friction): they are not drawn (docs/contacts.md 8)."
+    "contacts held** (frictionless ones free) are drawn on each contact's map (dashed: "
+    "continuous bound, solid: motion bound, in units of beta, i.e. divided by the "
+    "contact's beta_ratio) only where every other contact with friction is in no motion: "
+    "there the motion is the held structure's and they give that contact's regime; "
+    "elsewhere they bound nothing. On the combined map, the largest held motion bound is "
+    "the exact boundary of every contact with friction stuck (the held margin of "
+    "docs/contacts.md 4). With the other contacts **free** (removed) the closed forms bound "
+    "nothing unless the others are frictionless (a sliding contact still carries its "
+    "friction): they are not drawn (docs/contacts.md 8)."
 )
 #: Planes of a swept result drawn (one figure each); the others are counted only.
 MAX_PLANES = 4

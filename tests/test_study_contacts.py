@@ -445,6 +445,25 @@ def test_held_structure_is_the_chain_held_by_hand():
         np.testing.assert_allclose(ours, truth, rtol=1e-9)
 
 
+def test_a_frictionless_partner_stays_free():
+    """beta_ratio 0: the held structure of the other contact is the scene without it,
+    whose closed forms predict that contact's regime at every point (2DOF chain)."""
+    scene = MultiScene.chain("ground", 2, [1, 2], kappa=0.5, beta_ratio=[1.0, 0.0])
+    r, beta = np.linspace(0.3, 2.4, 15), np.linspace(0.05, 1.3, 8)
+    for truth, ours in zip(
+        boundaries(scene.single(0), r, method="exact"),
+        boundaries(contact_bounds.held_scene(scene, 0), r, method="exact"),
+        strict=True,
+    ):
+        np.testing.assert_allclose(ours, truth, rtol=1e-12)
+    res = classify(scene, *np.meshgrid(r, beta), fidelity="fast")  # (beta, r, contact)
+    regime = xr.DataArray(np.moveaxis(res.regime, -1, 0), dims=("contact", "beta", "r"))
+    ds = xr.Dataset({"regime": regime}, {"r": r, "beta": beta, "beta_ratio": ("contact", [1, 0])})
+    (n0, agree0), (n1, _) = contact_bounds.held_agreement(ds, scene)
+    assert n0 == r.size * beta.size and agree0 >= 0.99 * n0 and n1 == 0
+    assert len(np.unique(res.regime[..., 0])) == 3  # the three regimes are predicted
+
+
 def test_held_closed_forms_predict_where_the_others_are_stuck(written):
     _, tree = written
     applied = 0
