@@ -218,7 +218,7 @@ def test_report_has_a_section_per_contact(written):
     text = (ws / "rep" / "report.md").read_text()
     assert "### Contact 0: ground 0 (beta_ratio 1)" in text
     assert "### Contact 1: between 1 2 (beta_ratio 2)" in text
-    assert "with the **other contacts held** are drawn on each contact's map" in text
+    assert "with the **other contacts held** (frictionless ones free) are drawn" in text
     assert (ws / "rep" / "two_walls_contacts.png").stat().st_size > 10_000
     # the held closed forms, a figure per plane of a sweep (the first 4), adaptive maps
     assert "### Closed forms with the other contacts held" in text
