@@ -625,14 +625,7 @@ class Study:
             raise StudyError("text", f"must be a string, got {_show(self.text)}")
         if self.source is not None and not isinstance(self.source, str):
             raise StudyError("source", f"must be a string or None, got {_show(self.source)}")
-        settings = self.settings  # raises a StudyError naming the setting
-        for i, s in enumerate(self.scenes):
-            if settings.n_random and contacts.is_multi(s.structure):
-                raise StudyError(
-                    "settings.n_random",
-                    f"random starts are not available for several contacts yet (scene[{i}])",
-                    self.source,
-                )
+        self.settings  # noqa: B018  (raises a StudyError naming the setting)
         total = self.n_points
         if total > self.max_points:
             raise StudyError(
