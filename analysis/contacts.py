@@ -2,14 +2,17 @@
 
 A result of several contacts has per-contact fields on a dim ``contact`` and a
 per-point ``regime_combined`` (``sum_c regime_c 3^c``, docs/results.md). No
-closed form bounds the regimes of several contacts: the closed forms of one
-contact (docs/theory.md 4) assume the other contacts absent, and a second
-contact changes both the load path and the dynamic stiffness seen by the
-first. The report therefore scores nothing here and draws no boundaries.
+closed form gives the regimes of several contacts in general; the closed forms
+of one contact with the other contacts held (:mod:`analysis.contact_bounds`)
+are drawn where they mean something: on each contact's map (its regime where
+every other contact is in no motion) and on the combined map (the boundary of
+every contact stuck). Each section says what they bound and counts the points
+where they apply and agree.
 """
 
 from __future__ import annotations
 
+import itertools
 from collections import Counter
 from pathlib import Path
 
@@ -18,18 +21,30 @@ import xarray as xr
 from matplotlib import colormaps
 from matplotlib.colors import ListedColormap
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
-from analysis import figures
+from analysis import contact_bounds, figures
 from tasks import regimes
+from tasks.multicontact import MultiScene
 
-#: The note every several-contact section carries.
-NO_BOUNDS = (
-    "No closed form bounds the regimes of several contacts: the closed forms of one "
-    "contact (docs/theory.md 4) assume the other contacts absent, and another contact's "
-    "friction changes the load path and the dynamic stiffness the first contact sees. "
-    "Nothing is scored and no boundary is drawn (docs/contacts.md)."
+#: What the drawn closed forms bound, in every several-contact section.
+BOUNDS_NOTE = (
+    "Closed forms of one contact (docs/theory.md 4, exact method) with the **other "
+    "contacts held** (frictionless ones free) are drawn on each contact's map (dashed: "
+    "continuous bound, solid: motion bound, in units of beta, i.e. divided by the "
+    "contact's beta_ratio) only where every other contact with friction is in no motion: "
+    "there the motion is the held structure's and they give that contact's regime; "
+    "elsewhere they bound nothing. On the combined map, the largest held motion bound is "
+    "the exact boundary of every contact with friction stuck (the held margin of "
+    "docs/contacts.md 4). With the other contacts **free** (removed) the closed forms bound "
+    "nothing unless the others are frictionless (a sliding contact still carries its "
+    "friction): they are not drawn (docs/contacts.md 8)."
 )
+#: Planes of a swept result drawn (one figure each); the others are counted only.
+MAX_PLANES = 4
+#: r values of the drawn closed-form curves (over the map's r range).
+CURVE_POINTS = 300
 
 
 def is_multi(ds: xr.Dataset) -> bool:
@@ -57,9 +72,10 @@ def _colours(codes: list[int], k: int) -> list:
     return [figures._colour(c) if c < 0 else cmap(c % cmap.N) for c in codes]
 
 
-def contacts_figure(ds: xr.Dataset, title: str = "") -> Figure:
+def contacts_figure(ds: xr.Dataset, title: str = "", scene: MultiScene | None = None) -> Figure:
     """The combined map (one colour per combined label present) and each contact's
-    regime map, for an (r, beta) grid without sweeps."""
+    regime map of one (r, beta) plane; with ``scene``, the closed forms of each contact
+    with the others held and the all-stuck boundary (:mod:`analysis.contact_bounds`)."""
     k = ds.sizes["contact"]
     fig = figures.new_figure(4.2 * (k + 1), 4.4)
     axes = fig.subplots(1, k + 1, sharey=True)
@@ -80,6 +96,8 @@ def contacts_figure(ds: xr.Dataset, title: str = "") -> Figure:
         shading="flat",
         rasterized=True,
     )
+    ax.set_xlim(figures._edges(r[ir])[[0, -1]])
+    ax.set_ylim(figures._edges(beta[ib])[[0, -1]])
     ax.set_xlabel(figures.R_LABEL)
     ax.set_ylabel(figures.BETA_LABEL)
     ax.set_title("combined")
@@ -87,7 +105,6 @@ def contacts_figure(ds: xr.Dataset, title: str = "") -> Figure:
         Patch(facecolor=col, edgecolor="0.3", label=combined_name(c, k))
         for c, col in zip(codes, colours, strict=True)
     ]
-    ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2, fontsize=7)
     present: set[int] = set()
     where = _where(ds)
     for c in range(k):
@@ -95,7 +112,31 @@ def contacts_figure(ds: xr.Dataset, title: str = "") -> Figure:
         present |= figures.draw_regime_map(axes[c + 1], regime, r, beta)
         axes[c + 1].set_title(f"contact {c}: {where[c]}", fontsize=9)
         axes[c + 1].set_ylabel("")
-    axes[-1].legend(handles=figures.regime_handles(sorted(present)), loc="upper left", fontsize=8)
+    lines = []
+    if scene is not None:
+        rc = np.linspace(r.min(), r.max(), CURVE_POINTS)
+        cont, motion = contact_bounds.held_bounds(scene, rc)
+        lim = figures._edges(beta[ib])[[0, -1]]
+        curves = [(axes[0], contact_bounds.all_stuck_bound(motion), "-")]
+        for c in range(k):  # only where every other contact is in no motion
+            for values, style in ((cont[c], "--"), (motion[c], "-")):
+                inside = figures.clip_to(values, *lim)
+                curves.append((axes[c + 1], contact_bounds.where_held(ds, c, rc, inside), style))
+        for ax_c, values, style in curves:
+            ax_c.plot(rc, figures.clip_to(values, *lim), color="k", linestyle=style, lw=1.2)
+            ax_c.set_ylim(*lim)
+        lines = [
+            Line2D([], [], color="k", linestyle="--", label="continuous, others held"),
+            Line2D([], [], color="k", label="no motion, others held (combined: all stuck)"),
+        ]
+    ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2, fontsize=7)
+    axes[-1].legend(
+        handles=figures.regime_handles(sorted(present)) + lines,
+        loc="upper center",
+        bbox_to_anchor=(0.5, -0.14),
+        ncol=2,
+        fontsize=7,
+    )
     if title:
         fig.suptitle(title)
     return fig
@@ -110,21 +151,76 @@ def _counts_table(values: np.ndarray, name_of) -> list[str]:
     return rows + [""]
 
 
+def planes(ds: xr.Dataset):
+    """(label, plane) of each (r, beta) plane of a grid result: one per combination of
+    the swept ratios (``gamma = 0.5, kappa = 1.4``), or the result itself."""
+    sweeps = [d for d in ds["regime_combined"].dims if d not in ("beta", "r")]
+    for idx in itertools.product(*(range(ds.sizes[d]) for d in sweeps)):
+        plane = ds.isel(dict(zip(sweeps, idx, strict=True)))
+        label = ", ".join(f"{d} = {float(plane[d]):g}" for d in sweeps)
+        yield label, plane
+
+
+def _agreement_rows(counts: list[tuple[int, int]], where: list[str]) -> list[str]:
+    rows = [
+        "| contact | points where every other contact is in no motion | agree with the held "
+        "closed forms | share |",
+        "|---|---|---|---|",
+    ]
+    for c, (n, agree) in enumerate(counts):
+        share = f"{100.0 * agree / n:.1f} %" if n else "-"
+        rows.append(f"| {c}: {where[c]} | {n} | {agree} | {share} |")
+    return rows + [""]
+
+
+def adaptive_line(ds: xr.Dataset) -> str:
+    """``- adaptive: ...`` of an adaptive map refined on the combined label."""
+    n, sim = int(ds["simulated"].size), int(ds["simulated"].values.sum())
+    line = (
+        f"- adaptive: {sim} of {n} points simulated ({100.0 * sim / n:.1f} %), refined on "
+        "`regime_combined`"
+    )
+    sampled = int(ds.attrs.get("verification_sampled", 0))
+    if sampled:
+        agree = int(ds.attrs["verification_agree"])
+        line += f"; verification: {agree} of {sampled} inferred labels confirmed by simulation"
+    return line
+
+
 def section(name: str, ds: xr.Dataset, out_dir: Path, stem: str) -> tuple[list[str], list[Path]]:
     """The report section of a several-contact scene and its figures."""
     k = ds.sizes["contact"]
     images: list[Path] = []
-    grid = (
-        "beta" in ds.dims and "r" in ds.dims and set(ds["regime"].dims) == {"contact", "beta", "r"}
-    )
-    if grid:
-        title = ds.attrs.get("scene_name", name)
-        fig = contacts_figure(ds, title=f"{title}: {k} contacts")
-        images.append(figures.save_figure(fig, out_dir / f"{stem}_contacts.png"))
+    where = _where(ds)
+    grid = "beta" in ds.dims and "r" in ds.dims and set(ds["regime"].dims) >= {"contact", "r"}
+    counts = [(0, 0)] * k
+    n_planes = 0
+    title = ds.attrs.get("scene_name", name)
+    for label, plane in planes(ds) if grid else ():
+        scene = contact_bounds.scene_of(plane)
+        if scene is not None:
+            found = contact_bounds.held_agreement(plane, scene)
+            counts = [(a + n, b + m) for (a, b), (n, m) in zip(counts, found, strict=True)]
+        if n_planes < MAX_PLANES:
+            fig = contacts_figure(
+                plane,
+                title=f"{title}: {k} contacts" + (f" ({label})" if label else ""),
+                scene=scene,
+            )
+            suffix = f"_{n_planes}" if label else ""
+            images.append(figures.save_figure(fig, out_dir / f"{stem}_contacts{suffix}.png"))
+        n_planes += 1
     lines = [f"## Scene `{name}`", ""]
     lines += [f"- {key}: `{ds.attrs[key]}`" for key in ("dof", "mode", "scene") if key in ds.attrs]
+    if "simulated" in ds:  # an adaptive map (docs/adaptive.md): refined on regime_combined
+        lines.append(adaptive_line(ds))
     lines += [""] + [f"![{p.stem}]({p.name})" for p in images] + [""]
-    lines += [NO_BOUNDS, ""]
+    if n_planes > MAX_PLANES:
+        lines += [f"Figures of the first {MAX_PLANES} of {n_planes} planes.", ""]
+    lines += [BOUNDS_NOTE, ""]
+    if grid:
+        lines += ["### Closed forms with the other contacts held", ""]
+        lines += _agreement_rows(counts, where)
     lines += [
         "### Combined regimes",
         "",
@@ -133,8 +229,8 @@ def section(name: str, ds: xr.Dataset, out_dir: Path, stem: str) -> tuple[list[s
         "",
     ]
     lines += _counts_table(ds["regime_combined"].values, lambda c: combined_name(int(c), k))
-    for c, where in enumerate(_where(ds)):
-        lines += [f"### Contact {c}: {where}", ""]
+    for c, label in enumerate(where):
+        lines += [f"### Contact {c}: {label}", ""]
         lines += _counts_table(
             ds["regime"].isel(contact=c).values,
             lambda code: regimes.name(int(code)).replace("_", " "),

@@ -159,7 +159,7 @@ def _summary(scores: Mapping[str, Mapping[str, Agreement]], kinds: Mapping[str, 
     rows = []
     for name, by_method in scores.items():
         if not by_method:
-            rows.append([f"`{name}`", kinds[name], "", "", "", "no closed-form bounds"])
+            rows.append([f"`{name}`", kinds[name], "", "", "", "several contacts: its section"])
             continue
         a = next(iter(by_method.values()))
         if a.kind == "trace":

@@ -38,6 +38,7 @@ from typing import TextIO
 
 import numpy as np
 
+from study import contacts
 from study.cost import chunk_target
 from study.definition import SceneSpec, Study
 from study.plans import CHUNK_FORMAT, SECONDS, WAIT, ScenePlan
@@ -50,7 +51,7 @@ from tasks.adaptive import (
     VerificationSummary,
     disagreement_upper_bound,
 )
-from tasks.result import FIELDS, MASS_FIELDS, field_shape
+from tasks.result import FIELDS
 
 #: Seed of the verification sample (fixed: a rerun draws the same sample).
 VERIFY_SEED = 0
@@ -177,17 +178,48 @@ class AdaptivePlan(ScenePlan):
     def plane_expected(self) -> Expected:
         """What a saved plane holds: every field at every point, and its counts."""
         shape = self.spec.plane_shape
-        out = {k: (dt, field_shape(k, shape, self.spec.dof)) for k, dt in self.variables().items()}
+        out = {k: (dt, self._shape(k, shape)) for k, dt in self.variables().items()}
         return out | {"levels": ("int64", None)} | {k: ("int64", ()) for k in STAT_NAMES[1:]}
 
     def expected(self, n: int | None) -> Expected:
         """What a point list of ``n`` points holds (any length when ``n`` is None)."""
-        dof = self.spec.dof
         out = {
-            k: (dt, None if n is None else field_shape(k, (n,), dof))
-            for k, (dt, _) in FIELDS.items()
+            k: (dt, None if n is None else self._shape(k, (n,)))
+            for k, dt in self.point_fields().items()
         }
         return out | SECONDS | {"index": ("int64", None if n is None else (n,))}
+
+    def point_fields(self) -> dict[str, str]:
+        """{field: dtype} a point list holds (one contact: :data:`tasks.result.FIELDS`;
+        several: those of :mod:`study.contacts`), ``regime_rest`` included."""
+        if contacts.is_multi(self.spec.structure):
+            return dict(contacts.MULTI_DTYPES)
+        return {k: dt for k, (dt, _) in FIELDS.items()}
+
+    def _shape(self, name: str, shape: tuple[int, ...]) -> tuple[int, ...]:
+        n = self.trailing(name)  # per mass, or per contact
+        return (*shape, n) if n else shape
+
+    def _empty(self, n: int = 0) -> dict[str, np.ndarray]:
+        return {
+            k: np.zeros(self._shape(k, (n,)), dtype=dt) for k, dt in self.point_fields().items()
+        }
+
+    def _new_refinement(self, hint: np.ndarray | None = None) -> StreamRefinement:
+        """A plane's refinement: labels and fields of one contact, or the combined
+        label of several contacts (:mod:`study.contacts`) with their per-contact fields."""
+        spec = self.spec
+        if not contacts.is_multi(spec.structure):
+            return StreamRefinement(spec.plane_shape, spec.coarse_step, hint, dof=spec.dof)
+        fields = {k: (dt, self.trailing(k)) for k, dt in self.point_fields().items()}
+        return StreamRefinement(
+            spec.plane_shape,
+            spec.coarse_step,
+            hint,
+            contacts.KEY_FIELDS,
+            fields=fields,
+            label=contacts.COMBINED,
+        )
 
     def _list_key(self, pl: _Plane, idx: np.ndarray) -> str:
         """Key of a point list: the plane, the length, a hash of the points' r and beta."""
@@ -333,15 +365,16 @@ class AdaptivePlan(ScenePlan):
         """Refinement is done: the verification sample's points become the ones to do."""
         pl.phase = "verify"
         sample = pl.ref.verification(self.spec.verify_fraction, DEFAULT_VERIFY_MIN, VERIFY_SEED)
-        pl.sample, pl.out = sample, _empty(self.spec.dof, sample.size)
+        pl.sample, pl.out = sample, self._empty(sample.size)
         pl.todo = sample.copy()
 
     def _start(self, sweep: tuple[int, ...], work) -> _Plane:
         axes, spec = self._axes, self.spec
-        ref = StreamRefinement(spec.plane_shape, spec.coarse_step, dof=spec.dof)
+        ref = self._new_refinement()
         tag = f"{spec.name}-pts-{self.plane_key(sweep, axes).rsplit('-', 1)[1][:12]}"
         pl = _Plane(sweep, ref, self._ident(sweep, axes), tag, time.perf_counter())
-        pl.hint_due = spec.hint != "none"
+        # several contacts: no closed-form hints (analysis.contact_bounds)
+        pl.hint_due = spec.hint != "none" and not contacts.is_multi(spec.structure)
         self._load_saved(pl, work)
         return pl
 
@@ -377,7 +410,7 @@ class AdaptivePlan(ScenePlan):
             parts.append(arrays)
         if not idx:
             return
-        pl.saved = {k: np.concatenate([a[k] for a in parts]) for k in FIELDS}
+        pl.saved = {k: np.concatenate([a[k] for a in parts]) for k in self.point_fields()}
         pl.row = np.full(pl.ref.n_points, -1, dtype=np.int64)
         pl.row[np.concatenate(idx)] = np.arange(sum(i.size for i in idx))
 
@@ -430,17 +463,13 @@ class AdaptivePlan(ScenePlan):
         for sweep in self.planes():
             arrays = work.load(self.spec.name, self.plane_key(sweep, axes), self.plane_expected())
             for name in self.variables():
-                extra = (slice(None),) if name in MASS_FIELDS else ()
+                extra = (slice(None),) if self.trailing(name) else ()
                 yield name, (*sweep, *extra, slice(None), slice(None)), np.asarray(arrays[name]).T
             self._stats.append(plane_stats(arrays))
 
     def result_attrs(self, work) -> dict[str, object]:
         """Scene attributes summed over its planes (after :meth:`writes`)."""
         return result_attrs(self, self._stats)
-
-
-def _empty(dof: int, n: int = 0) -> dict[str, np.ndarray]:
-    return {k: np.zeros(field_shape(k, (n,), dof), dtype=dt) for k, (dt, _) in FIELDS.items()}
 
 
 def plane_stats(arrays: dict[str, np.ndarray]) -> dict[str, int]:

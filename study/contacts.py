@@ -46,6 +46,9 @@ POINT_FIELDS: tuple[str, ...] = (
 )
 #: The combined label: one code per point (:func:`combined_attrs`).
 COMBINED = "regime_combined"
+#: Fields that must agree within a uniform cell of an adaptive map of several contacts
+#: (:class:`tasks.adaptive.Refinement`): the combined label and its flags.
+KEY_FIELDS: tuple[str, ...] = (COMBINED, "converged", "start_dependent")
 
 #: dtypes of every field of a several-contact scene, in the order they are written.
 MULTI_DTYPES: dict[str, str] = {
@@ -91,14 +94,33 @@ def chain_scene(
             )
     else:
         kinds = fields.string(contact, "contact")
-    for k, value in ratios.items():
-        if isinstance(value, Axis):
-            raise StudyError(k, "a sweep is not available with several contacts yet")
-    try:
-        scene = MultiScene.chain(kinds, dof, masses, beta_ratio=beta_ratio, **ratios)
+    first = {k: v.first if isinstance(v, Axis) else v for k, v in ratios.items()}
+    try:  # a sweep (gamma, kappa) is checked at its first value (chain_at gives the others)
+        scene = MultiScene.chain(kinds, dof, masses, beta_ratio=beta_ratio, **first)
     except ValueError as exc:
         raise field_error("", exc) from None
     return kinds, masses, scene
+
+
+def chain_at(spec, ratios: dict[str, float]) -> MultiScene:
+    """The several-contact chain of ``spec`` (a :class:`study.definition.SceneSpec`) with
+    the swept ratios set to ``ratios`` (the fixed ones as given)."""
+    fixed = {k: getattr(spec, k) for k in ("gamma", "kappa") if k not in spec.sweeps}
+    return MultiScene.chain(
+        spec.contact, spec.dof, spec.contact_mass, beta_ratio=spec.beta_ratio, **fixed, **ratios
+    )
+
+
+def check_mode(scene: object, mode: str) -> None:
+    """Refuse ``mode = "trace"`` for several contacts (one line naming ``mode``): a traced
+    boundary is the one beta at which the regime changes at each r, and with several
+    contacts each contact has its own boundaries, which cross (docs/contacts.md 8)."""
+    if is_multi(scene) and mode == "trace":
+        raise StudyError(
+            "mode",
+            "'trace' is not available for several contacts (each contact has its own "
+            "boundaries, which cross: use grid or adaptive, docs/contacts.md)",
+        )
 
 
 def variables(starts: list[str]) -> dict[str, str]:
@@ -183,28 +205,49 @@ def _plain(v: object) -> object:
     return v
 
 
-def describe(scene: MultiScene) -> str:
-    """What the scene is, for titles: ``2-DOF structure, 2 contacts (ground 0, ground 1)``."""
+def describe(scene: MultiScene, beam: dict | None = None) -> str:
+    """What the scene is, for titles: ``2-DOF structure, 2 contacts (ground 0, ground 1)``
+    (a beam: ``cantilever beam, contacts at nodes 5, 10``)."""
+    if beam is not None:
+        nodes = ", ".join(str(n) for n in beam["contact_node"])
+        return f"{beam.get('supports', 'cantilever')} beam, contacts at nodes {nodes}"
     where = ", ".join(" ".join(str(x) for x in c) for c in scene.contacts)
     return f"{scene.dof}-DOF structure, {scene.n_contacts} contacts ({where})"
 
 
-def scene_attr(scene: MultiScene) -> dict[str, object]:
-    """The ``scene`` attribute of a result: what the scene is (its arrays are
-    variables, :func:`study.structures.structure_variables`)."""
-    return {
+def scene_attr(spec) -> dict[str, object]:
+    """The ``scene`` attribute of a result of ``spec`` (a
+    :class:`study.definition.SceneSpec`): what the scene is (its arrays are variables,
+    :func:`structure_variables`); a chain also by its chain fields (a swept ratio as
+    its list of values), a beam by its table."""
+    scene = spec.structure
+    d: dict[str, object] = {
         "contact": "multi",
         "dof": scene.dof,
         "contacts": _plain(scene.contacts),
         "beta_ratio": list(scene.beta_ratio),
         "load": "base" if scene.load_scales_r2 else "force",
         "damping": "none",
-        "description": describe(scene),
+        "description": describe(scene, spec.beam),
     }
+    if spec.beam is not None:
+        d["beam"] = dict(spec.beam)
+    elif fields.is_list(spec.contact_mass):  # a chain
+        d["chain"] = {"contact": _plain(spec.contact), "contact_mass": list(spec.contact_mass)}
+        for k in ("gamma", "kappa"):
+            v = getattr(spec, k)
+            d["chain"][k] = (
+                [float(x) for x in v.values_array()] if isinstance(v, Axis) else _plain(v)
+            )
+    return d
 
 
-def toml_fields(scene: MultiScene) -> dict[str, object]:
-    """The keys of a ``[[scene]]`` table of matrices that give ``scene`` again."""
+def toml_fields(spec) -> dict[str, object]:
+    """The keys of a ``[[scene]]`` table of matrices or of a beam that give the scene of
+    ``spec`` (a :class:`study.definition.SceneSpec`) again."""
+    scene = spec.structure
+    if spec.beam is not None:
+        return {"beam": dict(spec.beam), "beta_ratio": list(scene.beta_ratio)}
     s = scene.structures[0]
     load = {"base": _plain(s.load_spec[1])} if s.load_scales_r2 else _plain(s.load_spec)
     contact = [{kind: idx[0] if kind == "ground" else list(idx)} for kind, *idx in scene.contacts]

@@ -284,10 +284,7 @@ class SceneSpec:
             raise StudyError("verify_fraction", f"must be in [0, 1], got {fraction:g}")
         put("verify_fraction", fraction)
         put("hint", fields.string(self.hint, "hint", ADAPTIVE_HINTS))
-        if contacts.is_multi(self.structure) and mode in ("trace", "adaptive"):
-            raise StudyError(
-                "mode", f"{mode!r} is not available for several contacts yet (grid and points are)"
-            )
+        contacts.check_mode(self.structure, mode)
         if self.points is not None:
             self._check_points(mode, dof)
         else:
@@ -337,7 +334,7 @@ class SceneSpec:
         if self.beam is not None:
             if self.contact is not None:
                 raise StudyError("contact", "a beam's contact is beam.contact_node")
-            scene = structures.beam_scene(self.beam, self.damping)
+            scene = structures.beam_scene(self.beam, self.damping, self.beta_ratio)
         else:
             contact = structures.contact_specs(self.contact)
             scene = structures.matrices_scene(
@@ -403,7 +400,7 @@ class SceneSpec:
     def scene_at(self, **ratios: float) -> Scene:
         """The :class:`tasks.Scene` with the swept ratios set to ``ratios``."""
         if self.structure is not None:
-            return self.structure
+            return contacts.chain_at(self, ratios) if self.sweeps else self.structure
         fixed = {k: getattr(self, k) for k in ("gamma", "kappa") if k not in self.sweeps}
         return Scene(self.contact, self.dof, self.contact_mass, **{**fixed, **ratios})
 
@@ -416,7 +413,7 @@ class SceneSpec:
         """``Scene.to_dict()`` with each swept field given as its list of values
         (a structure: what it is, its matrices being variables of the result)."""
         if contacts.is_multi(self.structure):
-            return contacts.scene_attr(self.structure)
+            return contacts.scene_attr(self)
         if self.structure is not None:
             return structures.scene_attr(self.structure, self.beam)
         d = self.base_scene.to_dict()
@@ -425,8 +422,8 @@ class SceneSpec:
         return d
 
     def to_toml_dict(self) -> dict[str, object]:
-        if contacts.is_multi(self.structure) and self.matrices is not None:
-            return {"name": self.name, **contacts.toml_fields(self.structure)} | self._axes_toml()
+        if contacts.is_multi(self.structure) and not fields.is_list(self.contact_mass):
+            return {"name": self.name, **contacts.toml_fields(self)} | self._axes_toml()
         if self.structure is not None and not contacts.is_multi(self.structure):
             d = {"name": self.name, **structures.toml_fields(self.structure, self.beam)}
             return d | self._axes_toml()
@@ -628,14 +625,7 @@ class Study:
             raise StudyError("text", f"must be a string, got {_show(self.text)}")
         if self.source is not None and not isinstance(self.source, str):
             raise StudyError("source", f"must be a string or None, got {_show(self.source)}")
-        settings = self.settings  # raises a StudyError naming the setting
-        for i, s in enumerate(self.scenes):
-            if settings.n_random and contacts.is_multi(s.structure):
-                raise StudyError(
-                    "settings.n_random",
-                    f"random starts are not available for several contacts yet (scene[{i}])",
-                    self.source,
-                )
+        self.settings  # noqa: B018  (raises a StudyError naming the setting)
         total = self.n_points
         if total > self.max_points:
             raise StudyError(

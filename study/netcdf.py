@@ -295,14 +295,15 @@ def scene_dataset(plan: ScenePlan, study: Study) -> tuple[xr.Dataset, dict[str, 
             fill = np.full(vshape, _fill(dt), dtype=dt)
         else:
             fill = da.full(vshape, _fill(dt), dtype=dt, chunks=_fill_chunks_shape(vshape, grid))
-        vattrs = contacts.attrs(name, spec.structure.n_contacts) if multi else _attrs(name)
+        of_contacts = multi and name in contacts.MULTI_DTYPES
+        vattrs = contacts.attrs(name, spec.structure.n_contacts) if of_contacts else _attrs(name)
         data_vars[name] = xr.Variable(vdims, fill, vattrs)
         encoding[name] = enc
     bounds = _boundary_vars(plan, axes)
     data_vars.update(bounds)
     for name in bounds:
         encoding[name] = {"zlib": True, "complevel": 4}
-    if spec.structure is not None:  # what recomputes it (docs/results.md)
+    if spec.structure is not None and not spec.sweeps:  # what recomputes it (docs/results.md)
         arrays = (contacts.structure_variables if multi else structure_variables)(spec.structure)
         for name, (vdims, values, vattrs) in arrays.items():
             data_vars[name] = xr.Variable(vdims, values, vattrs)

@@ -229,8 +229,9 @@ def matrices_scene(
         raise err from None
 
 
-def beam_scene(raw: object, damping: object) -> Scene:
-    """The scene of ``beam = {...}`` (:func:`tasks.structures.beam`) with ``damping``."""
+def beam_scene(raw: object, damping: object, beta_ratio: object = None) -> Scene:
+    """The scene of ``beam = {...}`` (:func:`tasks.structures.beam`) with ``damping``
+    (a list ``contact_node``, with ``beta_ratio``: a :class:`tasks.multicontact.MultiScene`)."""
     if not isinstance(raw, Mapping):
         raise StudyError("beam", f"must be a table of {', '.join(BEAM_KEYS)}, got {show(raw)}")
     for k in raw:
@@ -238,8 +239,14 @@ def beam_scene(raw: object, damping: object) -> Scene:
             raise StudyError(f"beam.{k}", f"unknown key (known keys here: {', '.join(BEAM_KEYS)})")
     kw = dict(raw)
     for k in ("n_elements", "contact_node", "modes"):
-        if k in kw:
+        if k == "contact_node" and fields.is_list(kw.get(k)):
+            kw[k] = [fields.integer(v, f"beam.{k}[{i}]") for i, v in enumerate(kw[k])]
+        elif k in kw:
             kw[k] = fields.integer(kw[k], f"beam.{k}")
+    if not fields.is_list(kw.get("contact_node")):
+        no_ratio(beta_ratio)
+    elif beta_ratio is not None:
+        kw["beta_ratio"] = beta_ratio
     for k in ("supports", "load"):
         if k in kw:
             kw[k] = fields.string(kw[k], f"beam.{k}")
@@ -250,7 +257,7 @@ def beam_scene(raw: object, damping: object) -> Scene:
         return beam(**kw, damping=spec_damping)
     except ValueError as exc:
         err = field_error("", exc)
-        if err.field.split(".")[0] != "damping":
+        if err.field.split(".")[0] not in ("damping", "beta_ratio"):
             err = StudyError(f"beam.{err.field}" if err.field else "beam", err.message)
         raise err from None
 

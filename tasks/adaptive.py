@@ -50,7 +50,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from tasks import regimes
-from tasks.result import FIELDS, field_shape
+from tasks.result import FIELDS, MASS_FIELDS
 
 #: Default coarsest spacing, in grid steps: the smallest feature the map is sure to find.
 DEFAULT_COARSE_STEP = 16
@@ -152,6 +152,14 @@ class Refinement:
         one is split even when uniform. Never decides a label.
     key_fields : sequence of str
         Fields that must agree within a uniform cell.
+    dof : int
+        Masses of the per-mass fields of :data:`tasks.result.FIELDS`.
+    fields : mapping, optional
+        ``{name: (dtype, n)}`` of the fields to keep instead of
+        :data:`tasks.result.FIELDS` (``n`` the length of a trailing axis, 0 for
+        none: e.g. the per-contact fields of several contacts).
+    label : str
+        The field the verification sample compares (any integer label).
 
     Use: ``while (idx := ref.wave()).size: ref.accept(idx, simulate(idx))``,
     then optionally ``ref.verification()`` / ``ref.accept_verification``, then
@@ -165,6 +173,8 @@ class Refinement:
         hint: np.ndarray | None = None,
         key_fields: tuple[str, ...] = KEY_FIELDS,
         dof: int = 1,
+        fields: Mapping[str, tuple[str, int]] | None = None,
+        label: str = "regime",
     ) -> None:
         n_r, n_b = (int(n) for n in shape)
         if n_r < 1 or n_b < 1:
@@ -174,10 +184,13 @@ class Refinement:
         self.shape = (n_r, n_b)
         self.coarse_step = int(coarse_step)
         self.key_fields = tuple(key_fields)
+        self.label = label
+        if fields is None:  # per-mass fields have a trailing mass axis
+            fields = {k: (dt, dof if k in MASS_FIELDS else 0) for k, (dt, _) in FIELDS.items()}
         self.fields = {
-            k: np.full(field_shape(k, self.shape, dof), _fill(dt), dtype=dt)
-            for k, (dt, _) in FIELDS.items()
-        }  # per-mass fields have a trailing mass axis
+            k: np.full((*self.shape, n) if n else self.shape, _fill(dt), dtype=dt)
+            for k, (dt, n) in fields.items()
+        }
         self.simulated = np.zeros(self.shape, dtype=bool)
         self.set_hint(hint)
         self.key = np.zeros(self.shape, dtype=np.int64)
@@ -399,8 +412,8 @@ class Refinement:
         idx = np.asarray(idx, dtype=np.int64).ravel()
         self._fill_inferred()
         ij = np.unravel_index(idx, self.shape)
-        inferred = self.fields["regime"][ij].copy()
-        simulated = np.asarray(results["regime"]).ravel()
+        inferred = self.fields[self.label][ij].copy()
+        simulated = np.asarray(results[self.label]).ravel()
         agree = inferred == simulated
         for name, arr in self.fields.items():
             arr[ij] = np.asarray(results[name]).reshape(idx.size, *arr.shape[2:])

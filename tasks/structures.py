@@ -20,10 +20,11 @@ without contact: ``K`` is divided by its first eigenvalue ``lambda_1``, so that
 ``r = omega / omega_1`` (Eq. 2.3), and the load has unit amplitude, so that
 ``beta = F / P`` (friction limit over load amplitude; base excitation:
 ``beta = F / (k_ref Y)`` with ``k_ref = lambda_1 EI / L^3``). The contact is a
-Coulomb contact to ground on the transverse DOF of one node. Optionally the model
-is reduced by Craig-Bampton (:func:`craig_bampton`, docs/structures.md 2.2): the
-contact DOF stays physical (the boundary), the rest is represented by its first
-``modes`` fixed-interface modes.
+Coulomb contact to ground on the transverse DOF of one node, or of each of several
+nodes (a :class:`tasks.multicontact.MultiScene`, docs/contacts.md). Optionally the
+model is reduced by Craig-Bampton (:func:`craig_bampton`, docs/structures.md 2.2):
+the contact DOFs stay physical (the boundary), the rest is represented by its
+first ``modes`` fixed-interface modes.
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import eigh
 
+from tasks.multicontact.scene import MAX_CONTACTS
 from tasks.scene import Scene
 
 SUPPORTS = ("cantilever", "pinned", "free")
@@ -180,54 +182,77 @@ def craig_bampton(
     return V
 
 
+def _contact_nodes(contact_node: object, n_elements: int, supports: str) -> list[int]:
+    """The contact nodes as a list (one node, or several for several contacts)."""
+    if contact_node is None:
+        return [n_elements // 2 if supports == "pinned" else n_elements]
+    several = isinstance(contact_node, list | tuple | np.ndarray)
+    nodes = list(contact_node) if several else [contact_node]
+    if several and not 2 <= len(nodes) <= MAX_CONTACTS:
+        raise ValueError(f"contact_node: a list of 2..{MAX_CONTACTS} nodes, got {len(nodes)}")
+    for node in nodes:
+        if isinstance(node, bool) or not isinstance(node, int | np.integer):
+            raise ValueError(f"contact_node: must be an integer node, got {node!r}")
+        if not 0 <= node <= n_elements:
+            raise ValueError(f"contact_node: must be in 0..{n_elements}, got {node}")
+    if len(set(nodes)) < len(nodes):
+        raise ValueError(f"contact_node: a node is listed twice, got {nodes}")
+    return [int(n) for n in nodes]
+
+
 def beam(
     n_elements: int = 20,
     supports: str = "cantilever",
-    contact_node: int | None = None,
+    contact_node: int | list[int] | None = None,
     load: str = "tip",
     modes: int | None = None,
     damping: object = None,
     support_stiffness: float | None = None,
+    beta_ratio: list[float] | None = None,
 ) -> Scene:
-    """A beam with a Coulomb contact to ground at one node, as a :class:`Scene`.
+    """A beam with a Coulomb contact to ground at one node (or at several), as a scene.
 
     Parameters
     ----------
     n_elements : int
         Hermite cubic elements (1..99).
     supports : {"cantilever", "pinned", "free"}
-    contact_node : int, optional
+    contact_node : int or list of int, optional
         Node (0 at x = 0, ``n_elements`` at x = L) whose transverse DOF has the
-        contact; default: the tip (cantilever, free) or midspan (pinned).
+        contact; default: the tip (cantilever, free) or midspan (pinned). A list
+        of 2..4 nodes gives a contact on each (a
+        :class:`tasks.multicontact.MultiScene`, docs/contacts.md), contact c on
+        ``contact_node[c]``.
     load : {"tip", "distributed", "base"}
         Unit harmonic force at the last node, uniform load of unit total, or a
         translation of the supports (cantilever and pinned; coordinates relative
         to the supports).
     modes : int, optional
-        Reduce by Craig-Bampton to the contact DOF plus this many fixed-interface
+        Reduce by Craig-Bampton to the contact DOFs plus this many fixed-interface
         modes (docs/structures.md 2.2); None keeps every DOF.
     damping : optional
         As :meth:`tasks.scene.Scene.from_matrices` (on the scaled, reduced matrices).
     support_stiffness : float, optional
         End springs of a free-free beam (units EI/L^3).
+    beta_ratio : list of float, optional
+        Several contacts only: ``beta_c = beta_ratio[c] * beta`` (default all 1).
 
     Returns
     -------
-    Scene
-        ``r`` referred to the first natural frequency without contact.
+    Scene or MultiScene
+        ``r`` referred to the first natural frequency without contact; the
+        contact DOFs are DOFs ``0..k-1`` of a reduced scene.
     """
     model = beam_model(n_elements, supports, support_stiffness)
     if load not in LOADS:
         raise ValueError(f"load: must be one of {LOADS}, got {load!r}")
     if load == "base" and supports == "free":
         raise ValueError("load: a free-free beam has no supports to move ('base')")
-    if contact_node is None:
-        contact_node = n_elements // 2 if supports == "pinned" else n_elements
-    if isinstance(contact_node, bool) or not isinstance(contact_node, int | np.integer):
-        raise ValueError(f"contact_node: must be an integer node, got {contact_node!r}")
-    if not 0 <= contact_node <= n_elements:
-        raise ValueError(f"contact_node: must be in 0..{n_elements}, got {contact_node}")
-    j = model.index(int(contact_node))
+    nodes = _contact_nodes(contact_node, n_elements, supports)
+    several = isinstance(contact_node, list | tuple | np.ndarray)
+    if beta_ratio is not None and not several:
+        raise ValueError("beta_ratio: applies to several contact nodes (a list contact_node)")
+    js = [model.index(node) for node in nodes]
     lam1 = eigh(model.stiffness, model.mass, eigvals_only=True, subset_by_index=[0, 0])[0]
     M, K = model.mass, model.stiffness / lam1
     vec = model.load_vector(load)
@@ -235,14 +260,19 @@ def beam(
         n = M.shape[0]
         if isinstance(modes, bool) or not isinstance(modes, int | np.integer):
             raise ValueError(f"modes: must be an integer, got {modes!r}")
-        if not 1 <= modes <= n - 1:
-            raise ValueError(f"modes: must be in 1..{n - 1} for this mesh, got {modes}")
-        V = craig_bampton(M, K, [j], int(modes))
+        if not 1 <= modes <= n - len(js):
+            raise ValueError(f"modes: must be in 1..{n - len(js)} for this mesh, got {modes}")
+        V = craig_bampton(M, K, js, int(modes))
         Mr, Kr = V.T @ M @ V, V.T @ K @ V
         if load == "base":  # p = r^2 V^T M u = r^2 M_r u_r
             vec = np.linalg.solve(Mr, V.T @ (M @ vec))
         else:
             vec = V.T @ vec
-        M, K, j = 0.5 * (Mr + Mr.T), 0.5 * (Kr + Kr.T), 0
+        M, K, js = 0.5 * (Mr + Mr.T), 0.5 * (Kr + Kr.T), list(range(len(js)))
     load_arg = ("base", vec) if load == "base" else vec
-    return Scene.from_matrices(M, K, load_arg, ("ground", j), damping=damping)
+    if several:
+        contacts = [("ground", j) for j in js]
+        return Scene.from_matrices(
+            M, K, load_arg, contacts, damping=damping, beta_ratio=beta_ratio or [1.0] * len(js)
+        )
+    return Scene.from_matrices(M, K, load_arg, ("ground", js[0]), damping=damping)
