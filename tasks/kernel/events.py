@@ -192,6 +192,21 @@ def _clear(sc, ya, dya, yb, dyb, h, curvature, slope):
 
 
 @njit(cache=True)
+def _clear_ahead(sc, y, dy, curvature):
+    """How far ahead of a point the event function provably stays positive:
+    ``u`` with ``F + F' u - curvature u^2 / 2 > 0`` before it, on ``F = s y``
+    sliding and on both smooth branches ``beta -+ y`` stuck (:func:`_clear`)."""
+    if sc[KIND] == KIND_SLIP:
+        f = sc[SIGN] * y
+        d = sc[SIGN] * dy
+        return (d + math.sqrt(d * d + 2.0 * curvature * f)) / curvature
+    beta = sc[BETA]
+    up = (-dy + math.sqrt(dy * dy + 2.0 * curvature * (beta - y))) / curvature
+    down = (dy + math.sqrt(dy * dy + 2.0 * curvature * (beta + y))) / curvature
+    return min(up, down)
+
+
+@njit(cache=True)
 def _out_of_work(sc):
     return sc[EVALS] > sc[WORK_CAP]
 
@@ -212,6 +227,8 @@ def _dip(seg, sc, ta, tb, ya, dya, yb, dyb, curvature, slope, tol, skip_graze, f
     zero known to rounding). Also returns the observable ``(y, y')`` at ``lo``
     and ``hi`` (kind 1; at ``hi`` not evaluated, NaN, for kinds 2 and 3).
     """
+    if _clear(sc, ya, dya, yb, dyb, tb - ta, curvature, slope):
+        return ta, tb, 0, ya, dya, yb, dyb  # the common case: no stack needed
     stack_a = np.empty(128)
     stack_b = np.empty(128)
     vals = np.empty((128, 4))
@@ -423,7 +440,11 @@ def next_event(seg, sc, t_end, h, tol, eta, etad):
         step = h
         certified = False
         if slope < np.inf:
+            # F > 0 on [ta, ta + safe): from |F'| <= slope, or from the curvature
+            # bound F(ta + u) >= F(ta) + F'(ta) u - curvature u^2 / 2
             safe = fa / slope if slope > 0.0 else t_end - ta
+            if curvature > 0.0 and fa > 0.0:
+                safe = max(safe, _clear_ahead(sc, ya, dya, curvature))
             if safe > step:
                 step = safe
                 certified = True
