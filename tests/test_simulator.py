@@ -253,3 +253,45 @@ def test_long_chain_creep_settles_with_the_exact_preset():
     assert res.regime == regimes.NO_MOTION and res.converged and res.asymptotic
     balanced = classify(Scene("ground", 20, 7), 1.0, 0.3)
     assert balanced.regime in (regimes.NO_MOTION, regimes.NOT_CONVERGED)
+
+
+@pytest.mark.parametrize("scene", [Scene("ground", 2, 1), Scene("mass", 3, 2)])
+def test_start_taylor_matches_the_closed_form(scene):
+    """The Taylor certificate's data (tasks.kernel.propagation.start_taylor, docs/simulator.md
+    3): y''(0) equals the derivative of the closed-form y' (central difference), and
+    the bound of |y'''| holds at every sample of the phase (second differences of y'),
+    for slip and stick phases from random states, resonant mode included (r = sqrt(lambda))."""
+    from tasks.classifier import settings_args
+    from tasks.fidelity import resolve
+    from tasks.kernel import _context, evaluate
+    from tasks.kernel.layout import COS_TAU0, ETA0, ETAD0, SIN_TAU0
+    from tasks.kernel.propagation import start_taylor
+    from tasks.model import scene_modes
+
+    args = scene_modes(scene).kernel_args()
+    rng = np.random.default_rng(7)
+    worst = 0.0
+    for r in (0.4, 1.3, float(np.sqrt(args[5][0]))):
+        ctx = _context(r, 0.3, args, settings_args(resolve("balanced")))[0]
+        sc = ctx[2].copy()
+        for seg in (ctx[0].copy(), ctx[1].copy()):
+            m = seg.shape[1]
+            eta, etad = np.zeros(m), np.zeros(m)
+            for _ in range(5):
+                seg[ETA0] = rng.normal(size=m)
+                seg[ETAD0] = rng.normal(size=m)
+                tau0 = rng.uniform(0.0, 2.0 * np.pi)
+                sc[COS_TAU0], sc[SIN_TAU0] = np.cos(tau0), np.sin(tau0)
+                t_end = 2.0
+                y2, bound, scale = start_taylor(seg, sc, t_end)
+                h = 1e-5
+                fd = (evaluate(seg, sc, h, eta, etad)[1] - evaluate(seg, sc, -h, eta, etad)[1]) / (
+                    2 * h
+                )
+                assert y2 == pytest.approx(fd, rel=1e-6, abs=1e-6 * scale)
+                k = 1e-3
+                for t in np.linspace(k, t_end - k, 200):
+                    d = [evaluate(seg, sc, t + j * k, eta, etad)[1] for j in (-1, 0, 1)]
+                    y3 = (d[0] - 2 * d[1] + d[2]) / k**2
+                    worst = max(worst, abs(y3) / bound)
+    assert 0.05 < worst <= 1.0 + 1e-3  # holds, and is not a vacuous bound

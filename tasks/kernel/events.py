@@ -40,7 +40,7 @@ from tasks.kernel.layout import (
     SIN_TAU0,
     WORK_CAP,
 )
-from tasks.kernel.propagation import derivative_bounds, evaluate, event_function
+from tasks.kernel.propagation import derivative_bounds, evaluate, start_taylor
 
 
 @njit(cache=True)
@@ -107,50 +107,53 @@ def never_unsticks(seg, sc):
 
 
 @njit(cache=True)
-def _solve_bracket(seg, sc, which, lo, hi, flo, fhi, tol, eta, etad):
-    """Illinois regula falsi on F (which=0) or F' (which=1) in a sign-changing bracket.
+def _solve_bracket(seg, sc, lo, hi, f_lo, d_lo, y_lo, dy_lo, f_hi, d_hi, tol, eta, etad):
+    """Safeguarded Newton on F in a sign-changing bracket, to ``hi - lo <= tol``.
 
-    ``flo`` and ``fhi`` have opposite signs (``fhi`` may be 0). Returns
-    ``(lo, hi)`` with ``hi - lo <= tol``; ``hi`` is on the side of ``fhi``.
+    ``F(lo) > 0 >= F(hi)``; ``d_lo``, ``d_hi`` are F' there and ``y_lo``,
+    ``dy_lo`` the observable at ``lo``. Newton steps from the last point use the
+    F' every evaluation gives anyway; a step that leaves the bracket or does not
+    halve the step before it is replaced by bisection, and once the Newton
+    correction is below ``0.9 tol`` the next point is placed ``0.99 tol`` from the
+    last one, past the root estimate, to close the bracket. Returns
+    ``(lo, hi, y_lo, dy_lo)``: ``hi - lo <= tol``, ``F(lo) > 0 >= F(hi)`` and the
+    observable at the final ``lo``.
     """
-    sign_lo = 1.0 if flo > 0.0 else -1.0
-    side = 0
-    width = hi - lo
+    # start from the end with the smaller |F| (Newton), else the secant point
+    if -f_hi < f_lo:
+        t = hi - f_hi / d_hi if d_hi != 0.0 else np.nan
+    else:
+        t = lo - f_lo / d_lo if d_lo != 0.0 else np.nan
+    if not (lo < t < hi):
+        t = (lo * f_hi - hi * f_lo) / (f_hi - f_lo)
+    step_old = hi - lo
+    step = step_old
     for _ in range(200):
-        if hi - lo <= tol or fhi == 0.0:
+        if hi - lo <= tol or f_hi == 0.0:
             break
-        t = (lo * fhi - hi * flo) / (fhi - flo)
         if not (lo < t < hi):
             t = 0.5 * (lo + hi)
-        f, df = event_function(seg, sc, t, eta, etad)
-        ft = f if which == 0 else df
-        if ft * sign_lo > 0.0:
+        y, dy = _observe(seg, sc, t, eta, etad)
+        f, df = _event_value(sc, y, dy)
+        if f > 0.0:
             lo = t
-            flo = ft
-            if side == 1:
-                fhi *= 0.5
-            side = 1
+            y_lo = y
+            dy_lo = dy
         else:
             hi = t
-            fhi = ft
-            if side == -1:
-                flo *= 0.5
-            side = -1
-        # guarantee progress: bisect when the bracket did not halve in two steps
-        new_width = hi - lo
-        if new_width > 0.5 * width:
-            t = 0.5 * (lo + hi)
-            f, df = event_function(seg, sc, t, eta, etad)
-            ft = f if which == 0 else df
-            if ft * sign_lo > 0.0:
-                lo = t
-                flo = ft
-            else:
-                hi = t
-                fhi = ft
-            side = 0
-        width = hi - lo
-    return lo, hi
+            f_hi = f
+        if hi - lo <= tol or f == 0.0:
+            break
+        step_old = step
+        tn = t - f / df if df != 0.0 else np.nan
+        if abs(tn - t) < 0.9 * tol:
+            # converged: close the bracket with a point just past the root
+            tn = t + 0.99 * tol if f > 0.0 else t - 0.99 * tol
+        elif not (lo < tn < hi) or abs(tn - t) > 0.5 * abs(step_old):
+            tn = 0.5 * (lo + hi)  # bisection: Newton left the bracket or stalled
+        step = tn - t
+        t = tn
+    return lo, hi, y_lo, dy_lo
 
 
 @njit(cache=True)
@@ -189,6 +192,21 @@ def _clear(sc, ya, dya, yb, dyb, h, curvature, slope):
 
 
 @njit(cache=True)
+def _clear_ahead(sc, y, dy, curvature):
+    """How far ahead of a point the event function provably stays positive:
+    ``u`` with ``F + F' u - curvature u^2 / 2 > 0`` before it, on ``F = s y``
+    sliding and on both smooth branches ``beta -+ y`` stuck (:func:`_clear`)."""
+    if sc[KIND] == KIND_SLIP:
+        f = sc[SIGN] * y
+        d = sc[SIGN] * dy
+        return (d + math.sqrt(d * d + 2.0 * curvature * f)) / curvature
+    beta = sc[BETA]
+    up = (-dy + math.sqrt(dy * dy + 2.0 * curvature * (beta - y))) / curvature
+    down = (dy + math.sqrt(dy * dy + 2.0 * curvature * (beta + y))) / curvature
+    return min(up, down)
+
+
+@njit(cache=True)
 def _out_of_work(sc):
     return sc[EVALS] > sc[WORK_CAP]
 
@@ -206,8 +224,11 @@ def _dip(seg, sc, ta, tb, ya, dya, yb, dyb, curvature, slope, tol, skip_graze, f
     point's work budget ran out. Stick phases (and ``skip_graze``) step over
     touching zeros: ``|g| = beta`` still sticks. Values ``F > -floor`` count
     as positive (``floor`` > 0 only next to a phase start, where F starts at a
-    zero known to rounding).
+    zero known to rounding). Also returns the observable ``(y, y')`` at ``lo``
+    and ``hi`` (kind 1; at ``hi`` not evaluated, NaN, for kinds 2 and 3).
     """
+    if _clear(sc, ya, dya, yb, dyb, tb - ta, curvature, slope):
+        return ta, tb, 0, ya, dya, yb, dyb  # the common case: no stack needed
     stack_a = np.empty(128)
     stack_b = np.empty(128)
     vals = np.empty((128, 4))
@@ -233,13 +254,13 @@ def _dip(seg, sc, ta, tb, ya, dya, yb, dyb, curvature, slope, tol, skip_graze, f
         if b - a <= tol or not (a < m < b) or top >= 126:
             if skip:
                 continue
-            return a, m, 2
+            return a, m, 2, y_a, d_a, np.nan, np.nan
         if _out_of_work(sc):
-            return a, b, 3
+            return a, b, 3, y_a, d_a, np.nan, np.nan
         y_m, d_m = _observe(seg, sc, m, eta, etad)
         f_m, _ = _event_value(sc, y_m, d_m)
         if f_m <= -floor:
-            return a, m, 1
+            return a, m, 1, y_a, d_a, y_m, d_m
         # right half first on the stack, so the left half is searched first
         stack_a[top] = m
         stack_b[top] = b
@@ -255,31 +276,31 @@ def _dip(seg, sc, ta, tb, ya, dya, yb, dyb, curvature, slope, tol, skip_graze, f
         vals[top, 2] = y_m
         vals[top, 3] = d_m
         top += 1
-    return ta, tb, 0
+    return ta, tb, 0, ya, dya, yb, dyb
 
 
 @njit(cache=True)
-def _first_zero(seg, sc, lo, hi, curvature, slope, tol, eta, etad):
+def _first_zero(seg, sc, lo, hi, y_lo, dy_lo, y_hi, dy_hi, curvature, slope, tol, eta, etad):
     """The first zero of F in ``(lo, hi]`` (F(lo) > 0 >= F(hi), no zero before lo).
 
-    Solves the bracket (:func:`_solve_bracket`), then proves with :func:`_dip`
-    that F has no zero between ``lo`` and the root found; if it has, the search
-    moves to the earlier sign change (or touching zero). Returns ``(t, ok)``,
-    ``t`` on the far side of the first zero; ``ok`` is False if the work budget
-    ran out.
+    ``(y_lo, dy_lo)``, ``(y_hi, dy_hi)`` are the observable at both ends (already
+    evaluated by the caller). Solves the bracket (:func:`_solve_bracket`), then
+    proves with :func:`_dip` that F has no zero between ``lo`` and the root found;
+    if it has, the search moves to the earlier sign change (or touching zero).
+    Returns ``(t, ok)``, ``t`` on the far side of the first zero; ``ok`` is False
+    if the work budget ran out.
     """
     while True:
-        y_lo, dy_lo = _observe(seg, sc, lo, eta, etad)
-        f_lo, _ = _event_value(sc, y_lo, dy_lo)
-        y_hi, dy_hi = _observe(seg, sc, hi, eta, etad)
-        f_hi, _ = _event_value(sc, y_hi, dy_hi)
+        f_lo, d_lo = _event_value(sc, y_lo, dy_lo)
+        f_hi, d_hi = _event_value(sc, y_hi, dy_hi)
         if not f_lo > 0.0:  # rounding at the bracket's end: take it as the zero
             return lo, True
-        r_lo, r_hi = _solve_bracket(seg, sc, 0, lo, hi, f_lo, f_hi, tol, eta, etad)
+        r_lo, r_hi, y_r, dy_r = _solve_bracket(
+            seg, sc, lo, hi, f_lo, d_lo, y_lo, dy_lo, f_hi, d_hi, tol, eta, etad
+        )
         if r_lo <= lo:
             return r_hi, True
-        y_r, dy_r = _observe(seg, sc, r_lo, eta, etad)
-        a, b, kind = _dip(
+        a, b, kind, y_lo, dy_lo, y_hi, dy_hi = _dip(
             seg, sc, lo, r_lo, y_lo, dy_lo, y_r, dy_r, curvature, slope, tol, False, 0.0, eta, etad
         )
         if kind == 0:
@@ -290,6 +311,36 @@ def _first_zero(seg, sc, lo, hi, curvature, slope, tol, eta, etad):
             return r_hi, False
         lo = a
         hi = b
+
+
+@njit(cache=True)
+def _taylor_clear(seg, sc, y0, f0, d0, floor, t_max):
+    """Length ``T <= t_max`` of the start ``(0, T]`` of a phase proved to keep
+    ``F > -floor`` by the Taylor bound ``F(t) >= F(0) + F'(0) t + F''(0) t^2 / 2 -
+    max|F'''| t^3 / 6`` (:func:`tasks.kernel.propagation.start_taylor`); 0 if it
+    proves nothing (``F''(0)`` not positive beyond its rounding, or a damped scene).
+
+    With ``T <= 3 F''(0) / (2 max|F'''|)`` the last two terms are at least
+    ``q t^2``, ``q = F''(0) / 2 - max|F'''| T / 6 > 0``, and the quadratic
+    ``F(0) + floor + F'(0) t + q t^2`` is positive for t > 0 when ``F'(0) >= 0``
+    or when its minimum ``F(0) + floor - F'(0)^2 / (4 q)`` is.
+    """
+    y2, bound, scale = start_taylor(seg, sc, t_max)
+    if sc[KIND] == KIND_SLIP:
+        f2 = sc[SIGN] * y2
+    else:
+        f2 = -y2 if y0 >= 0.0 else y2
+    f2 -= 1e-12 * scale  # rounding of the terms of F''(0)
+    if not (f2 > 0.0 and bound < np.inf):
+        return 0.0
+    t_clear = t_max if bound == 0.0 else min(t_max, 1.5 * f2 / bound)
+    q = 0.5 * f2 - bound * t_clear / 6.0
+    base = f0 + floor
+    if not (q > 0.0 and base >= 0.0):
+        return 0.0
+    if d0 >= 0.0 or base > d0 * d0 / (4.0 * q):
+        return t_clear
+    return 0.0
 
 
 @njit(cache=True)
@@ -331,16 +382,42 @@ def next_event(seg, sc, t_end, h, tol, eta, etad):
         if not noise < np.inf:
             noise = 0.0
         if f1 > -noise:
-            # (0, t1) is cleared from F(0) = 0 and F'(0) > 0, or searched
-            lo, hi, kind = _dip(
-                seg, sc, 0.0, t1, y0, dy0, y1, dy1, curvature, slope, tol, True, noise, eta, etad
-            )
+            # (0, t1) is cleared from F(0) = 0 and F'(0) > 0 (or from the Taylor
+            # bound where F'(0) = 0 too), or searched
+            t_clear = _taylor_clear(seg, sc, y0, f0, d0, noise, t1)
+            lo, hi, kind = t_clear, t1, 0
+            y_lo, dy_lo, y_hi, dy_hi = y1, dy1, y1, dy1
+            if t_clear < t1:
+                y_c, dy_c = y0, dy0
+                if t_clear > 0.0:
+                    y_c, dy_c = _observe(seg, sc, t_clear, eta, etad)
+                lo, hi, kind, y_lo, dy_lo, y_hi, dy_hi = _dip(
+                    seg,
+                    sc,
+                    t_clear,
+                    t1,
+                    y_c,
+                    dy_c,
+                    y1,
+                    dy1,
+                    curvature,
+                    slope,
+                    tol,
+                    True,
+                    noise,
+                    eta,
+                    etad,
+                )
             if kind == 3:
                 return t1, False
             if kind == 1 and lo > 0.0:
-                return _first_zero(seg, sc, lo, hi, curvature, slope, tol, eta, etad)
+                return _first_zero(
+                    seg, sc, lo, hi, y_lo, dy_lo, y_hi, dy_hi, curvature, slope, tol, eta, etad
+                )
             if kind == 1:
                 t1 = hi
+                y1 = y_hi
+                dy1 = dy_hi
                 f1 = -np.inf
         if not f1 > -noise:
             tm = t1
@@ -349,7 +426,9 @@ def next_event(seg, sc, t_end, h, tol, eta, etad):
                 ym, dym = _observe(seg, sc, tm, eta, etad)
                 fm, _ = _event_value(sc, ym, dym)
                 if fm > 0.0:
-                    return _first_zero(seg, sc, tm, t1, curvature, slope, tol, eta, etad)
+                    return _first_zero(
+                        seg, sc, tm, t1, ym, dym, y1, dy1, curvature, slope, tol, eta, etad
+                    )
             return tm, True
         ta = t1
         ya = y1
@@ -361,7 +440,11 @@ def next_event(seg, sc, t_end, h, tol, eta, etad):
         step = h
         certified = False
         if slope < np.inf:
+            # F > 0 on [ta, ta + safe): from |F'| <= slope, or from the curvature
+            # bound F(ta + u) >= F(ta) + F'(ta) u - curvature u^2 / 2
             safe = fa / slope if slope > 0.0 else t_end - ta
+            if curvature > 0.0 and fa > 0.0:
+                safe = max(safe, _clear_ahead(sc, ya, dya, curvature))
             if safe > step:
                 step = safe
                 certified = True
@@ -372,15 +455,17 @@ def next_event(seg, sc, t_end, h, tol, eta, etad):
         yb, dyb = _observe(seg, sc, tb, eta, etad)
         fb, _ = _event_value(sc, yb, dyb)
         if fb <= 0.0:
-            return _first_zero(seg, sc, ta, tb, curvature, slope, tol, eta, etad)
+            return _first_zero(seg, sc, ta, tb, ya, dya, yb, dyb, curvature, slope, tol, eta, etad)
         if not certified:
-            lo, hi, kind = _dip(
+            lo, hi, kind, y_lo, dy_lo, y_hi, dy_hi = _dip(
                 seg, sc, ta, tb, ya, dya, yb, dyb, curvature, slope, tol, False, 0.0, eta, etad
             )
             if kind == 2:  # the contact velocity touches zero: a stop if it can stick
                 return hi, True
             if kind == 1:
-                return _first_zero(seg, sc, lo, hi, curvature, slope, tol, eta, etad)
+                return _first_zero(
+                    seg, sc, lo, hi, y_lo, dy_lo, y_hi, dy_hi, curvature, slope, tol, eta, etad
+                )
             if kind == 3:
                 return tb, False
         ta = tb
