@@ -344,7 +344,7 @@ def test_sigint_right_after_the_start_one_line(tmp_path):
     (tmp_path / "small.toml").write_text(SMALL, encoding="utf-8")
     for delay in (0.05, 0.3):
         proc = subprocess.Popen(
-            [sys.executable, "-c", STUDY_SAYING_UP, "run", "small.toml", "-o", "small.nc"],
+            [sys.executable, "-c", STUDY_SAYING_UP, "run", "small.toml", "-o", f"{delay}.nc"],
             cwd=tmp_path,
             env=_env(),
             stderr=subprocess.PIPE,
@@ -360,4 +360,4 @@ def test_sigint_right_after_the_start_one_line(tmp_path):
             continue
         assert proc.returncode == 130, (delay, err)
         assert err.splitlines()[-1].startswith("study: interrupted"), (delay, err)
-        assert not (tmp_path / "small.nc").exists()
+        assert not (tmp_path / f"{delay}.nc").exists()
