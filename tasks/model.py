@@ -104,8 +104,10 @@ class SceneModes:
 
     @cached_property
     def _general_args(self) -> tuple:
-        """:func:`_pairs_args` of a non-proportionally damped scene, computed once."""
-        return _pairs_args(self, self.damping)
+        """:func:`_pairs_args` of a non-proportionally damped scene, computed once, in
+        C order (an F-ordered ``T`` made numba compile the whole kernel a second time)."""
+        args = _pairs_args(self, self.damping)
+        return tuple(np.ascontiguousarray(a) if isinstance(a, np.ndarray) else a for a in args)
 
     def load(self, r: float) -> np.ndarray:
         """Amplitude p of the harmonic load at frequency ratio r."""

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import shlex
 import subprocess
 import sys
 from collections.abc import Iterator
@@ -15,6 +16,10 @@ import pytest
 DATA = Path(__file__).resolve().parent / "data"
 #: The 170 independently labelled reference cases.
 REFERENCE_CASES = DATA / "reference_cases.json"
+#: The repository.
+ROOT = DATA.parents[1]
+#: Bound of one documented command (the first simulation of a fresh checkout compiles).
+DOCUMENTED_TIMEOUT = 600
 
 
 @pytest.fixture(scope="session")
@@ -42,6 +47,15 @@ def local_cluster_client(n_workers: int = 2) -> Iterator:
         ) as cluster,
         Client(cluster) as client,
     ):
+        yield client
+
+
+@pytest.fixture(scope="session")
+def cluster_client() -> Iterator:
+    """One real LocalCluster for the session (:func:`local_cluster_client`, 2 worker
+    processes), shared by the tests that only compute on it: a test that kills, stops
+    or interrupts workers starts its own."""
+    with local_cluster_client(2) as client:
         yield client
 
 
@@ -81,3 +95,66 @@ def run_cli(cli_env, tmp_path):
         )
 
     return run
+
+
+def docs_env() -> dict[str, str]:
+    """This interpreter's environment with the repository importable, no display."""
+    e = dict(os.environ)
+    e["PYTHONPATH"] = os.pathsep.join(p for p in (str(ROOT), e.get("PYTHONPATH")) if p)
+    e["MPLBACKEND"] = "Agg"
+    return e
+
+
+def workspace(path: Path) -> Path:
+    """A folder where a user would run the documented commands: ``examples/`` beside."""
+    path.mkdir(parents=True, exist_ok=True)
+    (path / "examples").symlink_to(ROOT / "examples", target_is_directory=True)
+    return path
+
+
+def study_cli(
+    line: str, cwd: Path, timeout: float = DOCUMENTED_TIMEOUT
+) -> subprocess.CompletedProcess:
+    """Run a documented ``study ...`` command line through ``python -m study``."""
+    args = shlex.split(line, comments=True)
+    assert args[0] == "study", line
+    return subprocess.run(
+        [sys.executable, "-m", "study", *args[1:]],
+        cwd=cwd,
+        env=docs_env(),
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+    )
+
+
+@pytest.fixture(scope="session")
+def documented_runs(tmp_path_factory):
+    """``run(lines)``: the ``study ...`` lines of one documented block, run in order through
+    the CLI in a fresh :func:`workspace` (up to the first that fails), once per session;
+    returns ``(workspace, [CompletedProcess per line run])``. tests/test_docs.py checks
+    every block this way, and tests that check the result of a documented command (the
+    cantilever example against the closed forms, the quickstart file the snippets read)
+    look at the same run instead of computing it again."""
+    done: dict[tuple[str, ...], tuple[Path, list[subprocess.CompletedProcess]]] = {}
+
+    def run(lines: list[str] | tuple[str, ...]) -> tuple[Path, list[subprocess.CompletedProcess]]:
+        key = tuple(lines)
+        if key not in done:
+            ws = workspace(tmp_path_factory.mktemp("documented") / "ws")
+            procs = []
+            for line in key:
+                procs.append(study_cli(line, ws))
+                if procs[-1].returncode != 0:
+                    break
+            done[key] = ws, procs
+        return done[key]
+
+    return run
+
+
+def assert_documented_lines_ran(lines, procs, where: str = "") -> None:
+    """Every line of a documented block ran with exit code 0."""
+    for line, proc in zip(lines, procs, strict=False):
+        assert proc.returncode == 0, f"{where}: {line}\n{proc.stderr[-3000:]}"
+    assert len(procs) == len(lines), where

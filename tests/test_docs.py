@@ -16,9 +16,7 @@
 
 from __future__ import annotations
 
-import os
 import re
-import shlex
 import subprocess
 import sys
 import tomllib
@@ -27,18 +25,20 @@ from pathlib import Path
 import numpy as np
 import pytest
 import xarray as xr
+from conftest import ROOT, assert_documented_lines_ran, docs_env, study_cli
 
 from study import Study
 from study.trace import TRACE_FIELDS
 from tasks.adaptive import ADAPTIVE_FIELDS
 from tasks.result import FIELDS, field_attrs
 
-ROOT = Path(__file__).resolve().parents[1]
 PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
 FENCE = re.compile(r"^```(\w*)\n(.*?)^```", re.M | re.S)
 #: A commit hash: 7-40 hex digits with a letter and a digit.
 HASH = re.compile(r"\b(?=[0-9a-f]*[a-f])(?=[0-9a-f]*[0-9])[0-9a-f]{7,40}\b")
 SNIPPET_TIMEOUT = 600  # seconds; the first simulation of a fresh checkout compiles
+#: The README's command that writes the file the python snippets read.
+RUN_QUICKSTART = "study run examples/quickstart.toml -o quickstart.nc"
 
 
 def blocks(lang: str) -> list[tuple[str, str]]:
@@ -50,43 +50,20 @@ def blocks(lang: str) -> list[tuple[str, str]]:
     return out
 
 
-def env() -> dict[str, str]:
-    """This interpreter's environment with the repository importable, no display."""
-    e = dict(os.environ)
-    e["PYTHONPATH"] = os.pathsep.join(p for p in (str(ROOT), e.get("PYTHONPATH")) if p)
-    e["MPLBACKEND"] = "Agg"
-    return e
+def study_lines(text: str) -> list[str]:
+    return [line.strip() for line in text.splitlines() if line.strip().startswith("study ")]
 
 
-def workspace(path: Path) -> Path:
-    """A folder where a user would run the documented commands: ``examples/`` beside."""
-    path.mkdir(parents=True, exist_ok=True)
-    (path / "examples").symlink_to(ROOT / "examples", target_is_directory=True)
-    return path
-
-
-def study_cli(
-    line: str, cwd: Path, timeout: float = SNIPPET_TIMEOUT
-) -> subprocess.CompletedProcess:
-    """Run a documented ``study ...`` command line through ``python -m study``."""
-    args = shlex.split(line, comments=True)
-    assert args[0] == "study", line
-    return subprocess.run(
-        [sys.executable, "-m", "study", *args[1:]],
-        cwd=cwd,
-        env=env(),
-        capture_output=True,
-        text=True,
-        timeout=timeout,
-    )
+BASH = [(w, t) for w, t in blocks("bash") if study_lines(t)]
 
 
 @pytest.fixture(scope="module")
-def quickstart(tmp_path_factory) -> Path:
-    """A workspace with the ``quickstart.nc`` of the README's first command."""
-    ws = workspace(tmp_path_factory.mktemp("docs") / "ws")
-    done = study_cli("study run examples/quickstart.toml -o quickstart.nc --workers 2", ws)
-    assert done.returncode == 0, done.stderr
+def quickstart(documented_runs) -> Path:
+    """The workspace where the README's block of ``study`` commands ran: it holds the
+    ``quickstart.nc`` they write (the same run test_study_commands_run checks)."""
+    lines = study_lines(next(t for _, t in BASH if RUN_QUICKSTART in t))
+    ws, procs = documented_runs(lines)
+    assert_documented_lines_ran(lines, procs, "README")
     return ws
 
 
@@ -98,7 +75,7 @@ def test_python_snippet_runs_as_a_script(where, code, quickstart, tmp_path):
     done = subprocess.run(
         [sys.executable, str(script)],
         cwd=quickstart,
-        env=env(),
+        env=docs_env(),
         capture_output=True,
         text=True,
         timeout=SNIPPET_TIMEOUT,
@@ -107,19 +84,13 @@ def test_python_snippet_runs_as_a_script(where, code, quickstart, tmp_path):
     assert "Traceback" not in done.stderr, f"{where}:\n{done.stderr[-3000:]}"
 
 
-def study_lines(text: str) -> list[str]:
-    return [line.strip() for line in text.splitlines() if line.strip().startswith("study ")]
-
-
-BASH = [(w, t) for w, t in blocks("bash") if study_lines(t)]
-
-
 @pytest.mark.parametrize(("where", "text"), BASH, ids=[b[0] for b in BASH])
-def test_study_commands_run(where, text, tmp_path):
-    ws = workspace(tmp_path / "ws")
-    for line in study_lines(text):
-        done = study_cli(line, ws)
-        assert done.returncode == 0, f"{where}: {line}\n{done.stderr[-3000:]}"
+def test_study_commands_run(where, text, documented_runs):
+    """Each block's lines in order in a fresh folder (once per session: tests of what
+    a documented command wrote look at the same run)."""
+    lines = study_lines(text)
+    _, procs = documented_runs(lines)
+    assert_documented_lines_ran(lines, procs, where)
 
 
 def test_the_readme_commands_are_the_documented_ones():
@@ -244,7 +215,7 @@ def written(tmp_path_factory) -> xr.DataTree:
     """A grid with a sweep, a point list and an adaptive map, written by ``study run``."""
     ws = tmp_path_factory.mktemp("written")
     (ws / "tiny.toml").write_text(TINY)
-    done = study_cli("study run tiny.toml -o tiny.nc --workers 1 --quiet", ws)
+    done = study_cli("study run tiny.toml -o tiny.nc --quiet", ws)  # small: in this process
     assert done.returncode == 0, done.stderr
     tree = xr.open_datatree(ws / "tiny.nc")
     yield tree

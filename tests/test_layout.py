@@ -13,7 +13,6 @@ import matplotlib
 import numpy as np
 import pytest
 import xarray as xr
-from conftest import local_cluster_client
 
 from study import Study, run_study
 from tasks import Scene, classify
@@ -35,9 +34,9 @@ def reduced(name: str, n_r: int = 14, n_beta: int = 9) -> Study:
 
 
 @pytest.fixture(scope="module")
-def client():
-    with local_cluster_client(2) as c:
-        yield c
+def client(cluster_client):
+    """The session's LocalCluster (2 worker processes)."""
+    return cluster_client
 
 
 def assert_codes(ds: xr.Dataset) -> None:

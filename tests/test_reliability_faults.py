@@ -29,7 +29,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 import xarray as xr
-from conftest import local_cluster_client
 from test_study_cluster import LONG, _env, dask_cluster
 
 from study import Study
@@ -119,10 +118,9 @@ def _corrupt(files: list[Path]) -> dict[str, Path]:
 
 
 @pytest.fixture(scope="module")
-def local_client():
-    """A real LocalCluster: one worker process on 127.0.0.1."""
-    with local_cluster_client(1) as client:
-        yield client
+def local_client(cluster_client):
+    """A real LocalCluster on 127.0.0.1: the session's (2 worker processes, none killed)."""
+    return cluster_client
 
 
 def test_damaged_work_folder_is_reported_discarded_recomputed(tmp_path, local_client):

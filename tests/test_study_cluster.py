@@ -6,7 +6,8 @@
   points, CF attributes and provenance are in place;
 * a real ``dask scheduler`` and two ``dask worker`` processes started here,
   used once through ``--scheduler-file`` and once through ``--scheduler
-  tcp://127.0.0.1:PORT`` (single-scene files: ``xr.open_dataset``);
+  tcp://127.0.0.1:PORT`` (single-scene files: ``xr.open_dataset``), and for the
+  trace study and the rest start (one cluster for the module: no worker is killed);
 * ``kill -9`` of a worker process while it runs a task of the study: the run
   finishes with every point, equal to an undisturbed run;
 * Ctrl-C (SIGINT to the whole process group, as a terminal sends it) of a
@@ -422,20 +423,30 @@ def long_reference(tmp_path_factory, remote) -> Path:
     return where / "ref.nc"
 
 
+@pytest.fixture(scope="module")
+def multi_on_local_cluster(
+    tmp_path_factory, warm_kernels
+) -> tuple[Path, subprocess.CompletedProcess]:
+    """MULTI run once on a LocalCluster of 2 worker processes (``--workers 2``): the
+    end-to-end checks and the comparison with the in-process run look at the same file."""
+    where = tmp_path_factory.mktemp("multi")
+    write_study(where / "multi.toml", MULTI)
+    return where, run_cli(where, "run", "multi.toml", "-o", "multi.nc", "--workers", "2")
+
+
 def long_chunk_keys(path: Path) -> list[str]:
     return [c.key for p in plan(Study.from_toml(path)) for c in p.chunks()]
 
 
 # --------------------------------------------------------------------------- tests
-def test_local_cluster_multi_scene_end_to_end(tmp_path, warm_kernels):
-    write_study(tmp_path / "multi.toml", MULTI)
-    proc = run_cli(tmp_path, "run", "multi.toml", "-o", "multi.nc", "--workers", "2")
+def test_local_cluster_multi_scene_end_to_end(multi_on_local_cluster):
+    where, proc = multi_on_local_cluster
     assert_ok(proc)
     assert "local cluster with 2 workers, dashboard http://127.0.0.1:" in proc.stderr
     n_points = 2 * 12 * 9 + 7
     assert_progress_complete(proc.stderr, n_points)
     c = counts(proc.stderr)
-    n_chunks = sum(p.n_chunks for p in plan(Study.from_toml(tmp_path / "multi.toml")))
+    n_chunks = sum(p.n_chunks for p in plan(Study.from_toml(where / "multi.toml")))
     assert c == {
         "chunks": n_chunks,
         "reusing": 0,
@@ -444,8 +455,8 @@ def test_local_cluster_multi_scene_end_to_end(tmp_path, warm_kernels):
         "computed": n_chunks,
         "reused": 0,
     }
-    out = tmp_path / "multi.nc"
-    assert not (tmp_path / "multi.nc.work").exists() and not temporary_files(out)
+    out = where / "multi.nc"
+    assert not (where / "multi.nc.work").exists() and not temporary_files(out)
 
     tree = xr.open_datatree(out)
     assert set(tree.children) == {"sweep", "pts"}
@@ -515,11 +526,13 @@ beta = {start = 0.0, stop = 4.0, num = 4001}
 """
 
 
-def test_trace_study_writes_its_result(tmp_path, warm_kernels):
+def test_trace_study_writes_its_result(tmp_path, remote):
     from analysis import boundaries
 
     write_study(tmp_path / "trace.toml", TRACE)
-    proc = run_cli(tmp_path, "run", "trace.toml", "-o", "trace.nc", "--workers", "2")
+    proc = run_cli(
+        tmp_path, "run", "trace.toml", "-o", "trace.nc", "--scheduler-file", remote.scheduler_file
+    )
     assert_ok(proc)
     out = tmp_path / "trace.nc"
     assert not (tmp_path / "trace.nc.work").exists() and not temporary_files(out)
@@ -566,9 +579,10 @@ beta = {start = 0.05, stop = 1.0, num = 4}
 """
 
 
-def test_regime_rest_is_written_only_where_rest_is_a_start(tmp_path, warm_kernels):
+def test_regime_rest_is_written_only_where_rest_is_a_start(tmp_path, remote):
     write_study(tmp_path / "starts.toml", STARTS)
-    assert_ok(run_cli(tmp_path, "run", "starts.toml", "-o", "starts.nc", "--workers", "1"))
+    args = ("run", "starts.toml", "-o", "starts.nc", "--scheduler-file", remote.scheduler_file)
+    assert_ok(run_cli(tmp_path, *args))  # computed by worker processes
     ds = xr.open_dataset(tmp_path / "starts.nc")
     assert ds["regime_rest"].dtype == np.int8
     assert not (ds["regime_rest"] == regimes.NOT_COMPUTED).any()
@@ -577,18 +591,19 @@ def test_regime_rest_is_written_only_where_rest_is_a_start(tmp_path, warm_kernel
     assert_fields_equal(ds, {}, expected)
 
 
-def test_small_study_runs_in_process_with_the_same_result(tmp_path, warm_kernels):
+def test_small_study_runs_in_process_with_the_same_result(tmp_path, multi_on_local_cluster):
     """No worker processes to wait for when they would take longer to start than the
-    study takes; --workers asks for them. Both files are identical."""
+    study takes; --workers asks for them. Both files are identical (the --workers 2
+    run is the one test_local_cluster_multi_scene_end_to_end checks)."""
     write_study(tmp_path / "multi.toml", MULTI)
     small = run_cli(tmp_path, "run", "multi.toml", "-o", "small.nc")
     assert_ok(small)
     assert "computing in this process (no worker processes" in small.stderr
     assert "local cluster with" not in small.stderr
-    procs = run_cli(tmp_path, "run", "multi.toml", "-o", "procs.nc", "--workers", "2")
+    where, procs = multi_on_local_cluster
     assert_ok(procs)
     assert "local cluster with 2 workers" in procs.stderr
-    assert_same_result(tmp_path / "small.nc", tmp_path / "procs.nc")
+    assert_same_result(tmp_path / "small.nc", where / "multi.nc")
 
 
 def test_remote_cluster_via_scheduler_file(tmp_path, remote):

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import os
+import shlex
 import subprocess
 import sys
 from pathlib import Path
@@ -18,6 +19,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import xarray as xr
+from conftest import assert_documented_lines_ran
 
 from analysis import predict
 from analysis.design import scene_of, stored_matrices
@@ -289,7 +291,7 @@ def test_bad_structure_exits_2_with_one_line(tmp_path):
 
 
 # --------------------------------------------------------------------------- the example
-def test_cantilever_example_agrees_with_the_damped_closed_forms(tmp_path):
+def test_cantilever_example_agrees_with_the_damped_closed_forms(documented_runs):
     """The example map (docs/structures.md) against analysis.closed_form's damped
     boundaries, rebuilt from the stored matrices.
 
@@ -298,12 +300,23 @@ def test_cantilever_example_agrees_with_the_damped_closed_forms(tmp_path):
     within a grid step of a boundary that the simulation reaches asymptotically
     (flagged ``asymptotic``); the report prints 99.96 % (5098/5100). The floor
     99.5 % leaves room for a few such points and still fails if one boundary
-    were off by one grid step along a tenth of its length (about 1 %)."""
-    done = study_cli(
-        "run", str(ROOT / "examples" / "cantilever.toml"), "-o", "c.nc", "--quiet", cwd=tmp_path
-    )
-    assert done.returncode == 0, done.stderr[-3000:]
-    with xr.open_dataset(tmp_path / "c.nc") as ds:
+    were off by one grid step along a tenth of its length (about 1 %).
+
+    The map and its report are those of the documented commands (docs/studies.md:
+    ``study run examples/cantilever.toml ...`` then ``study report``), run once per
+    session and also checked by tests/test_docs.py."""
+    from test_docs import BASH, study_lines
+
+    texts = [t for _, t in BASH if "study run examples/cantilever.toml" in t]
+    assert texts, "no documented block runs examples/cantilever.toml"
+    lines = study_lines(texts[0])
+    ws, procs = documented_runs(lines)
+    assert_documented_lines_ran(lines, procs, "cantilever")
+    args = {line.split()[1]: shlex.split(line, comments=True) for line in lines}
+    result = args["run"][args["run"].index("-o") + 1]
+    assert args["report"][2] == result, lines  # the report of that map
+    report = ws / args["report"][args["report"].index("-o") + 1] / "report.md"
+    with xr.open_dataset(ws / result) as ds:
         scene = scene_of(ds)
         assert scene == beam(
             n_elements=20, contact_node=18, modes=4, damping=("rayleigh", 0.0172, 0.00275)
@@ -312,9 +325,8 @@ def test_cantilever_example_agrees_with_the_damped_closed_forms(tmp_path):
         theory = predict(scene, r.ravel(), beta.ravel(), method="exact").reshape(r.shape)
         agree = float(np.mean(ds.regime.values == theory))
         assert set(np.unique(ds.regime.values)) == {0, 1, 2}
+        assert ds.regime.size == 5100  # the whole example map
         r_values = ds.r.values
     assert agree >= 0.995, agree
     assert r_values.min() < 1.0 and r_values.max() > 6.27  # the first two modes
-    done = study_cli("report", "c.nc", "-o", "rep", cwd=tmp_path)
-    assert done.returncode == 0, done.stderr[-3000:]
-    assert "cantilever, contact at node 18" in (tmp_path / "rep" / "report.md").read_text()
+    assert "cantilever, contact at node 18" in report.read_text()
