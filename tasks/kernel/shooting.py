@@ -70,6 +70,19 @@ SETTLE_CYCLES = 150
 
 
 @njit(cache=True)
+def _broyden_update(J, dR, step):
+    """Broyden's rank-one update of the Jacobian ``J`` (in place) after a step ``s`` that
+    changed the residual by ``dR``: ``J += (dR - J s) s^T / (s . s)``."""
+    ss = _dot(step, step)
+    if ss > 0.0:
+        u = dR - J @ step
+        dim = J.shape[0]
+        for i in range(dim):
+            for k in range(dim):
+                J[i, k] += u[i] * step[k] / ss
+
+
+@njit(cache=True)
 def _reduce(X, mode, b, w, proj):
     """Coordinates of the section state in its phase: ``(x, x')`` while sliding,
     ``(d0, q, q')`` while stuck (the contact frozen: ``x = T q + d0 w``, ``x' = T q'``)."""
@@ -326,7 +339,6 @@ def _follow_newton(y0, R0, J, mode, rec, nr, ctx, work, theta, target, scale):
     w = ctx[CTX_W]
     T = ctx[CTX_T]
     proj = ctx[CTX_PROJ]
-    dim = y0.shape[0]
     yf = y0.copy()
     Rf = R0.copy()
     res_f = _max_abs(Rf)
@@ -348,12 +360,7 @@ def _follow_newton(y0, R0, J, mode, rec, nr, ctx, work, theta, target, scale):
         rn = _max_abs(Rn)
         if not rn < res_f:
             break
-        ss = _dot(step, step)
-        if ss > 0.0:  # Broyden: J += ((Rn - Rf) - J s) s^T / (s . s)
-            u = (Rn - Rf) - J @ step
-            for i in range(dim):
-                for k in range(dim):
-                    J[i, k] += u[i] * step[k] / ss
+        _broyden_update(J, Rn - Rf, step)
         yf = yn
         Rf = Rn
         res_f = rn
@@ -478,14 +485,7 @@ def _shoot(X0, mode, stats, ctx, work, rtol, floor, max_newton, theta, keep, kep
                 y1n = _reduce(X1n, mode, b, w, proj)
                 Rn = y1n - yn
                 if _max_abs(Rn) < res:
-                    # Broyden: J += ((Rn - R) - J s) s^T / (s . s), s = yn - y0
-                    sv = yn - y0
-                    ss = _dot(sv, sv)
-                    if ss > 0.0:
-                        u = (Rn - R) - J @ sv
-                        for i in range(dim):
-                            for k in range(dim):
-                                J[i, k] += u[i] * sv[k] / ss
+                    _broyden_update(J, Rn - R, yn - y0)
                     y0 = yn
                     y1 = y1n
                     X0 = Xn
