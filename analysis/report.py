@@ -388,6 +388,11 @@ def _scene_section(
 ) -> list[str]:
     lines = _scene_header(name, ds)
     lines += [f"![{p.stem}]({p.name})" for p in images] + [""]
+    if ds.attrs.get("design_quantities") == "off" and scene_kind(ds) == "grid":
+        lines += [
+            "Response figure skipped: the design quantities were not computed (`design = false`).",
+            "",
+        ]
     if not by_method:
         return lines + ["No closed-form bounds in this scene: nothing scored.", ""] + _starts(ds)
     first = next(iter(by_method.values()))

@@ -39,6 +39,7 @@ from typing import TextIO
 import numpy as np
 
 from study import contacts
+from study.compute import point_fields
 from study.cost import chunk_target
 from study.definition import SceneSpec, Study
 from study.plans import CHUNK_FORMAT, SECONDS, WAIT, ScenePlan
@@ -51,7 +52,6 @@ from tasks.adaptive import (
     VerificationSummary,
     disagreement_upper_bound,
 )
-from tasks.result import FIELDS
 
 #: Seed of the verification sample (fixed: a rerun draws the same sample).
 VERIFY_SEED = 0
@@ -190,11 +190,12 @@ class AdaptivePlan(ScenePlan):
         return out | SECONDS | {"index": ("int64", None if n is None else (n,))}
 
     def point_fields(self) -> dict[str, str]:
-        """{field: dtype} a point list holds (one contact: :data:`tasks.result.FIELDS`;
-        several: those of :mod:`study.contacts`), ``regime_rest`` included."""
+        """{field: dtype} a point list holds (one contact:
+        :func:`study.compute.point_fields`, without the design quantities when they
+        are off; several: those of :mod:`study.contacts`), ``regime_rest`` included."""
         if contacts.is_multi(self.spec.structure):
             return dict(contacts.MULTI_DTYPES)
-        return {k: dt for k, (dt, _) in FIELDS.items()}
+        return point_fields(self.settings)
 
     def _shape(self, name: str, shape: tuple[int, ...]) -> tuple[int, ...]:
         n = self.trailing(name)  # per mass, or per contact
@@ -209,9 +210,11 @@ class AdaptivePlan(ScenePlan):
         """A plane's refinement: labels and fields of one contact, or the combined
         label of several contacts (:mod:`study.contacts`) with their per-contact fields."""
         spec = self.spec
-        if not contacts.is_multi(spec.structure):
-            return StreamRefinement(spec.plane_shape, spec.coarse_step, hint, dof=spec.dof)
         fields = {k: (dt, self.trailing(k)) for k, dt in self.point_fields().items()}
+        if not contacts.is_multi(spec.structure):  # design quantities only when computed
+            return StreamRefinement(
+                spec.plane_shape, spec.coarse_step, hint, dof=spec.dof, fields=fields
+            )
         return StreamRefinement(
             spec.plane_shape,
             spec.coarse_step,

@@ -104,6 +104,9 @@ class TracePlan(ScenePlan):
     def contents(self, axes, rows, cols):
         return {"r": axes["r"][slice(*rows)], "beta": axes["beta"]}
 
+    def design_quantities(self) -> None:
+        return None  # a traced scene holds boundaries only
+
     def extra_attrs(self, axes):
         return {"beta_range": json.dumps([float(axes["beta"].min()), float(axes["beta"].max())])}
 

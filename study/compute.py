@@ -10,7 +10,7 @@ import time
 
 import numpy as np
 
-from tasks.result import FIELDS, field_shape
+from tasks.result import DESIGN_FIELDS, FIELDS, field_shape
 from tasks.scene import Scene
 
 
@@ -29,7 +29,7 @@ def compute_chunk(task: dict) -> dict[str, np.ndarray]:
     Returns
     -------
     dict of numpy.ndarray
-        One array per field of ``tasks.result.FIELDS`` (grid: shape
+        One array per field of :func:`point_fields` (grid: shape
         ``(len(r), len(beta))``; points: ``(len(r),)``; per-mass fields with
         a trailing axis of length dof), plus ``seconds``,
         the compute time of the chunk (a 0-d float array).
@@ -41,6 +41,19 @@ def compute_chunk(task: dict) -> dict[str, np.ndarray]:
     out = run(task)
     out["seconds"] = np.float64(time.perf_counter() - t0)
     return out
+
+
+def design_on(settings: dict) -> bool:
+    """Whether the design quantities are computed (the setting ``design``, on by default)."""
+    return bool(settings.get("design", True))
+
+
+def point_fields(settings: dict) -> dict[str, str]:
+    """{field: dtype} a one-contact unit returns under ``settings``: every field of
+    :data:`tasks.result.FIELDS`, without :data:`tasks.result.DESIGN_FIELDS` when
+    ``design`` is off (then not computed, and absent: never NaN-filled)."""
+    skip = () if design_on(settings) else DESIGN_FIELDS
+    return {k: dt for k, (dt, _) in FIELDS.items() if k not in skip}
 
 
 def _grid(task: dict) -> dict:
@@ -68,7 +81,8 @@ def _classify(scene: dict, settings: dict, r: np.ndarray, beta: np.ndarray) -> d
         from study.contacts import from_result
 
         return from_result(res)
-    return {name: np.asarray(getattr(res, name), dtype=dt) for name, (dt, _) in FIELDS.items()}
+    fields = point_fields(settings)
+    return {name: np.asarray(getattr(res, name), dtype=dt) for name, dt in fields.items()}
 
 
 def _classify_points(task: dict) -> dict:
@@ -80,9 +94,8 @@ def _classify_points(task: dict) -> dict:
     gamma = task.get("gamma", np.full(n, np.nan))
     kappa = task.get("kappa", np.full(n, np.nan))
     dof = int(task["scene"]["dof"])
-    out = {
-        name: np.zeros(field_shape(name, (n,), dof), dtype=dt) for name, (dt, _) in FIELDS.items()
-    }
+    fields = point_fields(task["settings"])
+    out = {name: np.zeros(field_shape(name, (n,), dof), dtype=dt) for name, dt in fields.items()}
     pairs = np.stack([gamma, kappa], axis=1)
     for g, k in np.unique(pairs, axis=0):
         sel = (np.isnan(gamma) if np.isnan(g) else gamma == g) & (

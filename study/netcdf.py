@@ -322,6 +322,8 @@ def scene_dataset(plan: ScenePlan, study: Study) -> tuple[xr.Dataset, dict[str, 
     if multi:  # several contacts: contact_mass is not one mass (the contact coordinates say)
         del attrs["contact_mass"]
         attrs["n_contacts"] = spec.structure.n_contacts
+    if (design := plan.design_quantities()) is not None:  # "off": design variables absent
+        attrs["design_quantities"] = design
     attrs.update(plan.extra_attrs(axes))
     return xr.Dataset(data_vars, coords, attrs), encoding
 

@@ -40,10 +40,11 @@ from typing import ClassVar
 import numpy as np
 
 from study import contacts
+from study.compute import design_on, point_fields
 from study.cost import chunk_target, seconds_per_point
 from study.definition import SceneSpec, Study
 from study.verify import Expected, simulator_version
-from tasks.result import FIELDS, MASS_FIELDS
+from tasks.result import MASS_FIELDS
 
 #: Bump when the meaning of a chunk changes, so old work folders are not reused.
 CHUNK_FORMAT = 4  # 2: design quantities; 3: no _shape entry; 4: dissipation_viscous
@@ -123,13 +124,22 @@ class ScenePlan:
 
         ``regime_rest`` only where rest is one of the starts: elsewhere it would
         hold nothing but the placeholder -127 (``tasks.regimes.NOT_COMPUTED``),
-        which a written result never holds.
+        which a written result never holds. The design quantities only where
+        they are computed (:func:`study.compute.point_fields`).
         """
         starts = self.settings.get("starts") or [self.settings.get("initial_condition", "held")]
         if contacts.is_multi(self.spec.structure):  # several contacts: study.contacts
             return contacts.variables(list(starts))
         skip = () if "rest" in starts else ("regime_rest",)
-        return {k: dt for k, (dt, _) in FIELDS.items() if k not in skip}
+        return {k: dt for k, dt in point_fields(self.settings).items() if k not in skip}
+
+    def design_quantities(self) -> str | None:
+        """The scene attribute ``design_quantities``: "on" or "off" (the setting
+        ``design``), None where it does not apply (a traced scene holds none; the
+        fields of several contacts are always computed)."""
+        if contacts.is_multi(self.spec.structure):
+            return "on"
+        return "on" if design_on(self.settings) else "off"
 
     def trailing(self, name: str) -> int:
         """Length of the trailing axis of a field in a unit's arrays (per mass or

@@ -1,0 +1,161 @@
+"""``design = false`` in a study's ``[settings]``: the design quantities are not
+computed, and absent from the work folder and the result (docs/results.md), in
+every scene kind, through the CLI (in this process: small studies use threads)."""
+
+from __future__ import annotations
+
+import io
+import os
+import tomllib
+from contextlib import contextmanager, redirect_stderr
+from pathlib import Path
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from study.chunks import plan
+from study.cli import main
+from study.compute import compute_chunk
+from study.definition import Study
+from study.errors import StudyError
+from study.store import WorkDir
+from tasks.result import DESIGN_FIELDS
+
+SCENES = """
+[[scene]]
+name = "grid"
+contact = "ground"
+dof = 2
+contact_mass = 1
+gamma = {values = [0.5, 2.0]}
+kappa = 1.0
+r = {start = 0.2, stop = 2.0, num = 7}
+beta = {start = 0.0, stop = 1.2, num = 6}
+
+[[scene]]
+name = "pts"
+contact = "base"
+dof = 2
+contact_mass = 2
+points = {r = [0.4, 0.9, 1.3], beta = [0.1, 0.05, 0.5], gamma = [1.0, 2.0, 2.0]}
+
+[[scene]]
+name = "adaptive"
+contact = "ground"
+dof = 2
+mode = "adaptive"
+coarse_step = 4
+verify_fraction = 0.1
+r = {start = 0.1, stop = 2.5, num = 33}
+beta = {start = 0.0, stop = 1.5, num = 17}
+
+[[scene]]
+name = "traced"
+contact = "ground"
+dof = 2
+mode = "trace"
+r = {start = 0.3, stop = 2.0, num = 4}
+beta = {start = 0.0, stop = 1.5, num = 61}
+"""
+#: The default (no ``design`` key: on) and the same study with the design pass off.
+ON = '[study]\nname = "on"\nfidelity = "fast"\n' + SCENES
+OFF = '[study]\nname = "off"\nfidelity = "fast"\n\n[settings]\ndesign = false\n' + SCENES
+#: Scenes whose results hold design quantities when they are on.
+WITH_DESIGN = ("grid", "pts", "adaptive")
+LABELS = ("regime", "stops_per_cycle", "cycles")
+
+
+@contextmanager
+def inside(path: Path):
+    old = Path.cwd()
+    os.chdir(path)
+    try:
+        yield
+    finally:
+        os.chdir(old)
+
+
+def study(where: Path, *args: str) -> tuple[int, str]:
+    """``study ARGS`` in this process, in ``where``: exit code and stderr."""
+    err = io.StringIO()
+    with inside(where), redirect_stderr(err):
+        code = main(list(args))
+    return code, err.getvalue()
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory) -> Path:
+    where = tmp_path_factory.mktemp("design")
+    for name, text in (("on", ON), ("off", OFF)):
+        (where / f"{name}.toml").write_text(text, encoding="utf-8")
+        code, err = study(where, "run", f"{name}.toml", "-o", f"{name}.nc", "--quiet")
+        assert code == 0, err
+    return where
+
+
+def scenes(path: Path) -> dict[str, xr.Dataset]:
+    with xr.open_datatree(path) as tree:
+        return {str(k): v.to_dataset().load() for k, v in tree.children.items()}
+
+
+def test_design_off_leaves_design_variables_out_and_labels_equal(runs):
+    on, off = scenes(runs / "on.nc"), scenes(runs / "off.nc")
+    assert set(on) == set(off) == {*WITH_DESIGN, "traced"}
+    for name in WITH_DESIGN:
+        a, b = on[name], off[name]
+        assert a.attrs["design_quantities"] == "on", name  # the default
+        assert b.attrs["design_quantities"] == "off", name
+        assert set(DESIGN_FIELDS) <= set(a.data_vars), name
+        assert not set(DESIGN_FIELDS) & set(b.data_vars), name
+        assert "mass" in a.coords and "mass" not in b.coords, name
+        assert set(a.data_vars) - set(b.data_vars) == set(DESIGN_FIELDS), name
+        for label in LABELS:
+            assert b[label].dims == a[label].dims, (name, label)
+            np.testing.assert_array_equal(b[label].values, a[label].values, err_msg=name)
+        for var in b.data_vars:  # every other variable too (floats: NaN where none)
+            np.testing.assert_array_equal(b[var].values, a[var].values, err_msg=f"{name} {var}")
+    assert off["grid"]["regime"].dims == ("gamma", "beta", "r")
+    assert off["pts"]["regime"].dims == ("point",)
+    assert bool(off["adaptive"]["simulated"].any())
+    # a traced scene never holds design quantities: the same either way, no attribute
+    assert "design_quantities" not in off["traced"].attrs
+    for var in on["traced"].data_vars:
+        np.testing.assert_array_equal(off["traced"][var].values, on["traced"][var].values)
+
+
+def test_report_on_a_result_without_design_quantities(runs):
+    out = runs / "report_off"
+    code, err = study(runs, "report", "off.nc", "-o", str(out))
+    assert code == 0, err
+    text = (out / "report.md").read_text(encoding="utf-8")
+    assert not list(out.glob("*_response.png"))  # needs the amplitudes
+    assert list(out.glob("grid_map.png")) and list(out.glob("adaptive_map.png"))
+    reason = "Response figure skipped: the design quantities were not computed"
+    assert text.count(reason) == 2  # the grid and the adaptive map
+
+
+def test_resume_of_a_run_with_design_off(runs, tmp_path):
+    """A unit saved by an earlier run (the worker's own arrays, without design
+    fields) is verified against the layout and reused, not discarded."""
+    (tmp_path / "off.toml").write_text(OFF, encoding="utf-8")
+    grid = next(p for p in plan(Study.from_toml(tmp_path / "off.toml")) if p.spec.name == "grid")
+    first = next(grid.chunks())
+    arrays = compute_chunk(grid.task(first))
+    assert not set(DESIGN_FIELDS) & set(arrays)
+    WorkDir(tmp_path / "off.nc").save("grid", first.key, arrays)
+    code, err = study(tmp_path, "run", "off.toml", "-o", "off.nc", "--quiet")
+    assert code == 0, err
+    assert "reusing 1 chunks" in err, err
+    assert "discarded" not in err, err
+    resumed, whole = scenes(tmp_path / "off.nc"), scenes(runs / "off.nc")
+    for name in WITH_DESIGN:
+        assert set(resumed[name].data_vars) == set(whole[name].data_vars), name
+        for label in LABELS:
+            np.testing.assert_array_equal(resumed[name][label], whole[name][label])
+
+
+def test_design_must_be_a_bool():
+    bad = OFF.replace("design = false", 'design = "no"')
+    with pytest.raises(StudyError, match=r"settings\.design.*true or false"):
+        Study.from_dict(tomllib.loads(bad)).settings  # noqa: B018
