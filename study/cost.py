@@ -46,6 +46,12 @@ BASE_SECONDS: dict[str, float] = {"fast": 1.7e-4, "balanced": 2.8e-4, "exact": 3
 #: Relative extra cost per additional degree of freedom (fit above: 2 DOF 0.42 ms,
 #: 5 DOF 0.84 ms per point).
 DOF_SLOPE = 0.5
+#: Cost per point relative to one contact, by number of contacts (tasks.multicontact).
+CONTACT_FACTOR: dict[int, float] = {1: 1.0, 2: 2.3, 3: 4.0}
+#: The fastest mode's :func:`mode_rate` up to which a scene costs what a chain costs
+#: (chains of the examples: 1.8-4.0), and the relative extra cost per unit above it.
+CHAIN_MODE_RATE = 4.0
+MODE_SLOPE = 0.2
 #: Wall seconds to start a local cluster of single-threaded workers and load the
 #: compiled kernels in them (``bench_plan.py --startup``: 4.5-4.6 s, 2 workers).
 STARTUP_SECONDS = 4.5
@@ -62,9 +68,46 @@ MIN_TASKS_PER_SCENE = 16
 TRACE_POINTS_PER_R = 40
 
 
-def seconds_per_point(dof: int, fidelity: str) -> float:
-    """Estimated compute seconds for one (r, beta) point."""
-    return BASE_SECONDS[fidelity] * (1.0 + DOF_SLOPE * (dof - 1))
+def mode_rate(scene, r: np.ndarray) -> float:
+    """Mean over ``r`` of ``sqrt(lambda_max) / r``: the phase the fastest free mode
+    turns through per excitation period, over 2 pi.
+
+    ``lambda_max`` is the largest eigenvalue of ``(K, M)`` at ``r = 1`` (Eqs. 68-69,
+    Eq. 1.1 for a structure). The event search scans each period in brackets a
+    fraction of that mode's half-period long, so the brackets per period grow
+    with it: about 1.6-4 for a chain, 35-90 for the example beams.
+    """
+    from scipy.linalg import eigh
+
+    lam = eigh(scene.stiffness_matrix(), scene.mass_matrix(1.0), eigvals_only=True)
+    r = np.asarray(r, dtype=float)
+    return float(np.mean(np.sqrt(max(float(lam[-1]), 0.0)) / r)) if r.size else 0.0
+
+
+def scene_factor(scene, r: np.ndarray) -> float:
+    """Cost of a point of ``scene`` over the r values ``r``, relative to a chain with
+    one contact of the same DOF count and fidelity.
+
+    ``(1 + MODE_SLOPE * max(0, mode_rate - CHAIN_MODE_RATE))`` for the fastest
+    mode (:func:`mode_rate`), times ``CONTACT_FACTOR[n]`` for ``n`` contacts
+    (:mod:`tasks.multicontact`). A pure function of the scene and its r values.
+    """
+    n = int(getattr(scene, "n_contacts", 1))
+    contact = CONTACT_FACTOR.get(n, CONTACT_FACTOR[max(CONTACT_FACTOR)] * n / max(CONTACT_FACTOR))
+    modes = 1.0 + MODE_SLOPE * max(0.0, mode_rate(scene, r) - CHAIN_MODE_RATE)
+    return contact * modes
+
+
+def spec_factor(spec) -> float:
+    """:func:`scene_factor` of a study scene (``study.definition.SceneSpec``): its
+    first scene of the sweeps, over its r axis (or its points' r)."""
+    r = spec.r.values_array() if spec.r is not None else np.asarray(spec.points.r)
+    return scene_factor(spec.base_scene, r)
+
+
+def seconds_per_point(dof: int, fidelity: str, factor: float = 1.0) -> float:
+    """Estimated compute seconds for one (r, beta) point; ``factor``: :func:`scene_factor`."""
+    return BASE_SECONDS[fidelity] * (1.0 + DOF_SLOPE * (dof - 1)) * factor
 
 
 def wall_seconds(cpu_seconds: float, workers: int, local: bool = True) -> float:
@@ -74,19 +117,21 @@ def wall_seconds(cpu_seconds: float, workers: int, local: bool = True) -> float:
     return startup + cpu_seconds / max(1, workers) * (1.0 + SCHEDULING_OVERHEAD)
 
 
-def points_per_task(dof: int, fidelity: str, task_seconds: float) -> int:
+def points_per_task(dof: int, fidelity: str, task_seconds: float, factor: float = 1.0) -> int:
     """Points in one task so that it takes about ``task_seconds``."""
-    return max(1, int(round(task_seconds / seconds_per_point(dof, fidelity))))
+    return max(1, int(round(task_seconds / seconds_per_point(dof, fidelity, factor))))
 
 
-def chunk_target(dof: int, fidelity: str, task_seconds: float, n_points: int) -> int:
+def chunk_target(
+    dof: int, fidelity: str, task_seconds: float, n_points: int, factor: float = 1.0
+) -> int:
     """Points per task of a scene of ``n_points``: ``task_seconds`` of work each, but
     at least ``MIN_TASKS_PER_SCENE`` tasks as long as each keeps ``MIN_TASK_SECONDS``.
 
     Depends on the study only (never on the cluster), so chunk keys are stable.
     """
-    target = points_per_task(dof, fidelity, task_seconds)
-    floor = points_per_task(dof, fidelity, min(MIN_TASK_SECONDS, task_seconds))
+    target = points_per_task(dof, fidelity, task_seconds, factor)
+    floor = points_per_task(dof, fidelity, min(MIN_TASK_SECONDS, task_seconds), factor)
     spread = -(-n_points // MIN_TASKS_PER_SCENE)  # ceil
     return max(1, min(target, max(floor, spread)))
 
