@@ -13,7 +13,8 @@ seconds per point (:func:`study.cost.seconds_per_point`, with the plan's work pe
 point and the scene's :func:`study.cost.scene_factor`), the measured ones, and
 their ratio, with the two features of the factor: the contact count and the
 fastest mode's :func:`study.cost.mode_rate` over the r range.
-``study.cost.BASE_SECONDS``, ``DOF_SLOPE``, ``CONTACT_FACTOR`` and ``MODE_SLOPE``
+``study.cost.BASE_SECONDS``, ``DOF_SLOPE``, ``CONTACT_SLOPE``, ``MODE_SLOPE`` and
+``MULTI_MODE_SLOPE``
 are fitted to the rows of the example studies (ratios near 1); the ``check_*``
 studies (:data:`CHECKS`, not among the examples) test the fit out of sample.
 """

@@ -3,7 +3,16 @@
 Used to size tasks (about ``task_seconds`` of work each, 0.1-2 s, not one task
 per point) and to print time estimates (``study plan``). The model is
 
-    seconds_per_point = BASE_SECONDS[fidelity] * (1 + DOF_SLOPE * (dof - 1))
+    seconds_per_point = BASE_SECONDS[fidelity] * (1 + DOF_SLOPE * (dof - 1)) * factor
+    factor = (1 + CONTACT_SLOPE * (contacts - 1)) * (1 + slope * max(0, rate - CHAIN_MODE_RATE))
+
+with ``rate`` the mean over the scene's r values of ``sqrt(lambda_max) / r``
+(:func:`mode_rate`: how many turns the fastest free mode makes per excitation
+period, which sets the number of event-search brackets per period). A chain has
+``rate`` 1.8-4, a reduced beam 35-90 (its fixed-interface modes), hence the
+factor of scenes given by matrices or beams; several contacts run the
+multi-contact simulator (:mod:`tasks.multicontact`), hence ``CONTACT_SLOPE``;
+``slope`` is ``MODE_SLOPE`` for one contact, ``MULTI_MODE_SLOPE`` for several.
 
 Measured with ``benchmarks/bench_scheduling.py``: on a 2-worker LocalCluster the
 scheduling overhead is about 2-5 % with tasks of 0.3-1.5 s and 12-14 % with
@@ -35,23 +44,32 @@ import numpy as np
 from tasks.fidelity import Settings
 from tasks.scene import Scene
 
-#: CPU seconds per point of a 1-DOF scene for each preset. Fitted to
-#: ``benchmarks/bench_plan.py`` (whole chunks of the example studies, balanced
-#: preset): measured 0.31 ms (1 DOF, Fig. 3), 0.19-0.63 ms, median 0.33 ms
-#: (2 DOF, 21 scenes), 0.86 ms (5 DOF, Fig. 10a) per point. The fast and exact
-#: presets keep their ratio to balanced of ``bench_scheduling.py calibrate``
-#: (0.6 and 1.15). Points near a resonance or a boundary cost more, no-motion
-#: points far less.
-BASE_SECONDS: dict[str, float] = {"fast": 1.7e-4, "balanced": 2.8e-4, "exact": 3.2e-4}
-#: Relative extra cost per additional degree of freedom (fit above: 2 DOF 0.42 ms,
-#: 5 DOF 0.84 ms per point).
-DOF_SLOPE = 0.5
-#: Cost per point relative to one contact, by number of contacts (tasks.multicontact).
-CONTACT_FACTOR: dict[int, float] = {1: 1.0, 2: 2.3, 3: 4.0}
-#: The fastest mode's :func:`mode_rate` up to which a scene costs what a chain costs
-#: (chains of the examples: 1.8-4.0), and the relative extra cost per unit above it.
+#: CPU seconds per point of a 1-DOF chain with one contact for each preset.
+#: Fitted to ``benchmarks/bench_plan.py`` (whole chunks of the example studies,
+#: balanced preset): measured 0.105 ms (1 DOF, Fig. 3); 2 DOF 0.17-0.25 ms (ground
+#: contact, Fig. 4, quickstart), 0.08-0.10 ms (base contact, Fig. 14), 0.07-0.09 ms
+#: (contact between the masses, Fig. 17); 0.19-0.31 ms (5 DOF, Figs. 10a, 10b).
+#: The fast preset measured 0.93 times balanced (a 2DOF chain, 240 points); exact
+#: keeps its earlier ratio to balanced (1.15). Points near a resonance or a
+#: boundary cost more, no-motion points far less.
+BASE_SECONDS: dict[str, float] = {"fast": 0.93e-4, "balanced": 1.0e-4, "exact": 1.15e-4}
+#: Relative extra cost per additional degree of freedom (fit above: 2 DOF 0.12 ms,
+#: 5 DOF 0.18 ms per point).
+DOF_SLOPE = 0.2
+#: Relative extra cost per additional contact (several contacts run
+#: :mod:`tasks.multicontact`). Fitted to ``bench_plan.py``: 2 contacts on a 2DOF
+#: and a 3DOF chain (fast preset) cost 6.3 and 9.3 times one contact.
+CONTACT_SLOPE = 6.6
+#: The fastest mode's :func:`mode_rate` up to which a scene costs what a chain
+#: costs (chains of the examples: 1.8-4.0).
 CHAIN_MODE_RATE = 4.0
-MODE_SLOPE = 0.2
+#: Relative extra cost per unit of :func:`mode_rate` above ``CHAIN_MODE_RATE``,
+#: one contact: the cantilever example (rate 35) costs 20-32 times a 5DOF chain.
+MODE_SLOPE = 0.78
+#: The same for several contacts (their simulator's brackets grow more slowly
+#: with the fastest mode): the beam with two contacts (rate 87) costs 5.7 times a
+#: chain of two contacts.
+MULTI_MODE_SLOPE = 0.057
 #: Wall seconds to start a local cluster of single-threaded workers and load the
 #: compiled kernels in them (``bench_plan.py --startup``: 4.5-4.6 s, 2 workers).
 STARTUP_SECONDS = 4.5
@@ -88,14 +106,15 @@ def scene_factor(scene, r: np.ndarray) -> float:
     """Cost of a point of ``scene`` over the r values ``r``, relative to a chain with
     one contact of the same DOF count and fidelity.
 
-    ``(1 + MODE_SLOPE * max(0, mode_rate - CHAIN_MODE_RATE))`` for the fastest
-    mode (:func:`mode_rate`), times ``CONTACT_FACTOR[n]`` for ``n`` contacts
-    (:mod:`tasks.multicontact`). A pure function of the scene and its r values.
+    ``(1 + CONTACT_SLOPE * (n - 1))`` for ``n`` contacts (:mod:`tasks.multicontact`),
+    times ``(1 + slope * max(0, mode_rate - CHAIN_MODE_RATE))`` for the fastest
+    mode (:func:`mode_rate`; ``slope`` is ``MODE_SLOPE`` for one contact,
+    ``MULTI_MODE_SLOPE`` for several). A pure function of the scene and its r values.
     """
     n = int(getattr(scene, "n_contacts", 1))
-    contact = CONTACT_FACTOR.get(n, CONTACT_FACTOR[max(CONTACT_FACTOR)] * n / max(CONTACT_FACTOR))
-    modes = 1.0 + MODE_SLOPE * max(0.0, mode_rate(scene, r) - CHAIN_MODE_RATE)
-    return contact * modes
+    slope = MODE_SLOPE if n == 1 else MULTI_MODE_SLOPE
+    modes = 1.0 + slope * max(0.0, mode_rate(scene, r) - CHAIN_MODE_RATE)
+    return (1.0 + CONTACT_SLOPE * (n - 1)) * modes
 
 
 def spec_factor(spec) -> float:

@@ -51,7 +51,7 @@ def test_estimate_grows_with_the_contact_count():
     ]
     assert one == 1.0
     assert one < factors[0] < factors[1] < factors[2]
-    assert factors[0] == pytest.approx(cost.CONTACT_FACTOR[2])
+    assert factors[0] == pytest.approx(1.0 + cost.CONTACT_SLOPE)
 
 
 def _study(**scene) -> Study:
@@ -65,7 +65,7 @@ def test_several_contacts_get_smaller_tasks_and_a_larger_estimate():
 
     (one,) = plan(_study(contact="ground", dof=2, contact_mass=1))
     (two,) = plan(_study(contact="ground", dof=2, contact_mass=[1, 2], beta_ratio=[1.0, 0.5]))
-    assert two.est_seconds == pytest.approx(cost.CONTACT_FACTOR[2] * one.est_seconds)
+    assert two.est_seconds == pytest.approx((1.0 + cost.CONTACT_SLOPE) * one.est_seconds)
     assert two.block[0] * two.block[1] < one.block[0] * one.block[1]
     # a pure function of the study: the same plan twice
     assert plan(_study(contact="ground", dof=2, contact_mass=[1, 2]))[0].block == two.block
