@@ -19,20 +19,20 @@ scheduling overhead is about 2-5 % with tasks of 0.3-1.5 s and 12-14 % with
 tasks of 0.1 s, hence the target of ``[study] task_seconds`` = 0.5 s.
 
 How the constants are calibrated (``benchmarks/bench_plan.py``): whole chunks
-of the real plans of the example studies (quickstart, Figs. 3, 4, 5, 10a, 14,
-15, 17: every regime of the maps, as in a run), a few per scene, computed by
-``study.compute.compute_chunk`` and timed in CPU seconds; ``BASE_SECONDS`` and
-``DOF_SLOPE`` are fitted to the measured seconds per point. The earlier
-constants (fitted to 400 random points per scene, without the design pass)
-were 1.1-2.4 times low per point, and the wall time printed by ``study plan``
-had no cluster start-up: 2-5 times low in all. :func:`wall_seconds` adds the
-start-up (:data:`STARTUP_SECONDS`, measured by ``bench_plan.py --startup``) and
+of the real plans of the example studies (quickstart, Figs. 3, 4, 10a, 10b, 14,
+17, the cantilever, two contacts on a 2DOF and a 3DOF chain and on a beam: every
+regime of the maps, as in a run), a few per scene, computed by
+``study.compute.compute_chunk`` and timed in CPU seconds; the constants below
+are fitted to the measured seconds per point (every example scene within
+2.3x), and two scenes not among the examples check the fit. :func:`wall_seconds`
+adds the start-up (:data:`STARTUP_SECONDS`, measured by ``bench_plan.py --startup``) and
 the scheduling overhead.
 
 Task sizes must not change between a run and its resume (they define the chunk
-keys), so they always use these fixed constants or ``[study] chunk_points``.
+keys), so they always use these fixed constants (with :func:`spec_factor`, a pure
+function of the study) or ``[study] chunk_points``.
 :func:`calibrate` measures the real cost on the local machine for estimates
-only (``study plan --calibrate``); put a measured value in ``BASE`` to re-tune.
+only (``study plan --calibrate``); put a measured value in ``BASE_SECONDS`` to re-tune.
 """
 
 from __future__ import annotations
