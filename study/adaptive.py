@@ -40,7 +40,7 @@ import numpy as np
 
 from study import contacts
 from study.compute import point_fields
-from study.cost import chunk_target
+from study.cost import chunk_target, spec_factor
 from study.definition import SceneSpec, Study
 from study.plans import CHUNK_FORMAT, SECONDS, WAIT, ScenePlan
 from study.store import discard
@@ -132,7 +132,7 @@ class AdaptivePlan(ScenePlan):
     @classmethod
     def build(cls, spec: SceneSpec, study: Study) -> AdaptivePlan:
         target = study.chunk_points or chunk_target(
-            spec.dof, study.fidelity, study.task_seconds, spec.n_points // 20
+            spec.dof, study.fidelity, study.task_seconds, spec.n_points // 20, spec_factor(spec)
         )
         return cls(spec, study.fidelity, study.settings.to_dict(), (target, 1))
 

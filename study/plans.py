@@ -41,7 +41,7 @@ import numpy as np
 
 from study import contacts
 from study.compute import design_on, point_fields
-from study.cost import chunk_target, seconds_per_point
+from study.cost import chunk_target, seconds_per_point, spec_factor
 from study.definition import SceneSpec, Study
 from study.verify import Expected, simulator_version
 from tasks.result import MASS_FIELDS
@@ -102,7 +102,7 @@ class ScenePlan:
     def build(cls, spec: SceneSpec, study: Study) -> ScenePlan:
         work = int(spec.n_points * cls.work_per_point)
         target = study.chunk_points or chunk_target(
-            spec.dof, study.fidelity, study.task_seconds, work
+            spec.dof, study.fidelity, study.task_seconds, work, spec_factor(spec)
         )
         return cls(spec, study.fidelity, study.settings.to_dict(), cls.block_for(spec, target))
 
@@ -186,7 +186,8 @@ class ScenePlan:
 
     @property
     def est_seconds(self) -> float:
-        per = seconds_per_point(self.spec.dof, self.fidelity) * self.work_per_point
+        per = seconds_per_point(self.spec.dof, self.fidelity, spec_factor(self.spec))
+        per *= self.work_per_point
         return per * self.spec.n_points
 
     @property

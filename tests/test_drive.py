@@ -45,9 +45,9 @@ def test_threads_while_the_planned_compute_is_short(study_file):
     assert threads == 2 and cpu / 2 <= IN_PROCESS_SECONDS
     threads, cpu = _threads(study_file, 2, 1000, 'mode = "adaptive"')  # a few % simulated
     assert threads == 2 and cpu / 2 <= IN_PROCESS_SECONDS
-    threads, cpu = _threads(study_file, 2, 1000)  # the dense grid: minutes
+    threads, cpu = _threads(study_file, 2, 3000)  # the dense grid: minutes
     assert threads == 0 and cpu / 2 > IN_PROCESS_SECONDS
-    assert _threads(study_file, 1, 1000)[0] == 1  # one core: nothing to gain from processes
+    assert _threads(study_file, 1, 3000)[0] == 1  # one core: nothing to gain from processes
 
 
 def test_several_contacts_hold_the_gil_one_thread_at_most(study_file):
