@@ -5,7 +5,7 @@ grid spends almost all of its simulations deep inside the regions. The
 refinement here simulates a coarse lattice of the grid (every ``coarse_step``
 grid steps along r and beta), then splits every cell whose simulated points
 disagree (a different regime, or a different flag: an undetermined code, not
-converged) into up to four halves, level by level, down to cells of one grid
+converged) into two halves, level by level, down to cells of one grid
 step. A cell whose simulated points all agree is *uniform*: its other points
 inherit the label and every other field from the nearest simulated corner and
 are marked ``simulated = False``.
@@ -17,8 +17,8 @@ Guarantees (in grid steps of the requested resolution):
   strips of 1 x 2 steps whose long edges are each uniform (the boundary crosses
   both short edges between simulated neighbours; the middle point of each long
   edge takes its edge's label, so only a feature one step long can hide there).
-  Cells are halved only along the axes their corners disagree across
-  (:meth:`Refinement._split_axes`), about two simulations per grid row a
+  Cells are halved along one axis at a time, the one their corners disagree
+  across (:meth:`Refinement._split_axes`), about two simulations per grid row a
   boundary crosses;
 * a region of one label (or flag) that contains a square of ``coarse_step`` x
   ``coarse_step`` grid steps contains a coarse node, so it is sure to be found,
@@ -271,25 +271,28 @@ class Refinement:
         return [(a, b, c, d) for a, b in rs for c, d in bs]
 
     def _split_axes(self, box: tuple[int, int, int, int]) -> tuple[bool, bool]:
-        """Which axes to halve a cell along: only the axes its corners disagree across.
+        """Which axis to halve a cell along: one axis at a time, across the disagreement.
 
         A boundary crossing the cell between its left and right corners (labels
         change along r) is followed by halving along r only, down to one step,
         then along beta: about two simulations per grid row the boundary crosses,
         instead of the five of a split into four at every level. A cell whose
-        corners all agree (refined for a disagreeing inner point or a hint) is
-        split along both axes.
+        corners disagree along both axes (a boundary cutting a corner, or a
+        diagonal one), or agree (refined for a disagreeing inner point or a
+        hint), is halved along its longer axis (r if square): two new points
+        instead of five, and only the half the boundary or the hint lies in is
+        halved again. The choice depends on the cell's corners only, so it does
+        not depend on the order in which points arrive.
         """
         i0, i1, j0, j1 = box
         k = self.key
         along_r = k[i0, j0] != k[i1, j0] or k[i0, j1] != k[i1, j1]
         along_b = k[i0, j0] != k[i0, j1] or k[i1, j0] != k[i1, j1]
-        if not (along_r or along_b):
-            along_r = along_b = True
-        wide, tall = i1 - i0 > 1, j1 - j0 > 1
-        split_r = wide and (along_r or not tall)
-        split_b = tall and (along_b or not wide)
-        return split_r, split_b
+        wide, tall = i1 - i0, j1 - j0
+        if along_r == along_b:  # both or neither: the longer axis
+            along_r = wide >= tall
+        split_r = wide > 1 and (along_r or tall <= 1)
+        return split_r, tall > 1 and not split_r
 
     def accept(self, idx: np.ndarray, results: Mapping[str, np.ndarray]) -> None:
         """Store the simulated fields of the points ``idx`` (flat indices)."""
