@@ -23,7 +23,9 @@ resolution, both on one LocalCluster of ``--workers`` single-threaded worker
 processes (started and warmed up before the timings), one scene after the
 other in the same run: the Fig. 4 example's panel (``examples/adaptive.toml``)
 and three scenes beyond the paper (3DOF contact between masses 2 and 3, 4DOF
-base contact on m3, 6DOF ground contact on m5), or ``--scenes``. Prints the
+base contact on m3, 6DOF ground contact on m5), or ``--scenes`` (also
+``dof3_base_m2``: 3DOF base contact on m2, ``dof5_ground_m3_kappa2``: 5DOF
+ground contact on m3 with kappa 2; :data:`OTHER_SCENES`). Prints the
 simulated fraction, levels, point lists, wall seconds of both and their ratio,
 the CPU seconds of both (this process and the workers: a busy machine stretches
 the wall seconds of one run more than the other's, not the CPU seconds) and
@@ -101,11 +103,21 @@ def dense_regime(scene, r, beta, cache: Path | None, fidelity: str) -> tuple[np.
     return regime, seconds
 
 
-#: Scenes of ``--cluster`` beyond the paper: (name, contact, dof, contact_mass, r stop).
+#: Scenes of ``--cluster`` beyond the paper (none is in ``examples/``):
+#: (name, contact, dof, contact_mass, kappa, r stop).
 OTHER_SCENES = (
-    ("dof3_mass_m2_m3", "mass", 3, 2, 3.0),
-    ("dof4_base_m3", "base", 4, 3, 3.0),
-    ("dof6_ground_m5", "ground", 6, 5, 3.0),
+    ("dof3_mass_m2_m3", "mass", 3, 2, 1.0, 3.0),
+    ("dof4_base_m3", "base", 4, 3, 1.0, 3.0),
+    ("dof6_ground_m5", "ground", 6, 5, 1.0, 3.0),
+    ("dof3_base_m2", "base", 3, 2, 1.0, 3.0),
+    ("dof5_ground_m3_kappa2", "ground", 5, 3, 2.0, 3.0),
+)
+#: The scenes of ``--cluster`` by default (the others by ``--scenes``).
+DEFAULT_CLUSTER_SCENES = (
+    "fig04:gamma1_kappa1",
+    "dof3_mass_m2_m3",
+    "dof4_base_m3",
+    "dof6_ground_m5",
 )
 STUDY = """
 [study]
@@ -129,14 +141,14 @@ ADAPTIVE_MODE = 'mode = "adaptive"\ncoarse_step = {step}\nverify_fraction = 0.00
 def cluster_scenes(names: list[str] | None) -> list[dict]:
     """The scenes of ``--cluster``: Fig. 4 (1, 1) and :data:`OTHER_SCENES` by default,
     or those named (``fig04:gamma1_kappa1`` for a paper panel, a name of OTHER_SCENES)."""
-    names = names or ["fig04:gamma1_kappa1", *(s[0] for s in OTHER_SCENES)]
+    names = names or list(DEFAULT_CLUSTER_SCENES)
     other = {s[0]: s for s in OTHER_SCENES}
     out = []
     for name in names:
         if name in other:
-            _, contact, dof, cm, r_stop = other[name]
+            _, contact, dof, cm, kappa, r_stop = other[name]
             out.append(
-                dict(name=name, contact=contact, dof=dof, cm=cm, gamma=1.0, kappa=1.0,
+                dict(name=name, contact=contact, dof=dof, cm=cm, gamma=1.0, kappa=kappa,
                      r_start=0.02, r_stop=r_stop, b_start=0.0, b_stop=1.5)
             )  # fmt: skip
             continue
