@@ -365,12 +365,16 @@ class Refinement:
         if boxes.shape[0] * pi.size <= _BROADCAST_LIMIT:  # few new points: compare directly
             inside = (i0 <= pi) & (pi <= i1) & (j0 <= pj) & (pj <= j1)
             count = inside.any(axis=1)
-        else:  # many: a summed-area table of the new points
-            s = np.zeros((self.shape[0] + 1, self.shape[1] + 1), dtype=np.int32)
-            s[1 + pi, 1 + pj] = 1
+        else:  # many: a summed-area table of the new points, on their own rows and columns
+            ui, ci = np.unique(pi, return_inverse=True)
+            uj, cj = np.unique(pj, return_inverse=True)
+            s = np.zeros((ui.size + 1, uj.size + 1), dtype=np.int32)
+            s[1 + ci, 1 + cj] = 1
             s = s.cumsum(0, dtype=np.int32).cumsum(1, dtype=np.int32)
-            i0, i1, j0, j1 = boxes.T
-            count = s[i1 + 1, j1 + 1] - s[i0, j1 + 1] - s[i1 + 1, j0] + s[i0, j0]
+            i0, i1, j0, j1 = boxes.T  # a box's rows [a, b) and columns [c, d) of the table
+            a, b = np.searchsorted(ui, i0, "left"), np.searchsorted(ui, i1, "right")
+            c, d = np.searchsorted(uj, j0, "left"), np.searchsorted(uj, j1, "right")
+            count = s[b, d] - s[a, d] - s[b, c] + s[a, c]
         reopen = np.zeros(boxes.shape[0], dtype=bool)
         for n in np.flatnonzero(count):
             box = tuple(int(v) for v in boxes[n])
