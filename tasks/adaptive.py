@@ -14,9 +14,12 @@ Guarantees (in grid steps of the requested resolution):
 
 * a boundary between two simulated neighbours is always resolved to one grid
   step: refinement stops only at cells of one step, at uniform cells, or at
-  strips of 1 x 2 steps whose long edges are each uniform (the boundary crosses
-  both short edges between simulated neighbours; the middle point of each long
-  edge takes its edge's label, so only a feature one step long can hide there).
+  resolved strips of 1 x 2 steps (:meth:`Refinement._resolved_strip`): long
+  edges each uniform (the boundary crosses both short edges between simulated
+  neighbours), or each simulated whole or uniform with the neighbour across
+  the strip agreeing. An unsimulated middle takes its edge's label, so only a
+  feature one step long can hide there. A strip asks for middles instead of
+  being split (:meth:`Refinement._strip_middles`).
   Cells are halved along one axis at a time, the one their corners disagree
   across (:meth:`Refinement._split_axes`), about two simulations per grid row a
   boundary crosses;
@@ -245,6 +248,10 @@ class Refinement:
                 i0, i1, j0, j1 = box
                 if i1 - i0 <= 1 and j1 - j0 <= 1:
                     continue  # every point of the cell is a simulated corner
+                if self._strip_points(box):  # a strip asks for middles, is not split
+                    children.append(box)
+                    new.extend(self._strip_middles(box))
+                    continue
                 for a, b, c, d in self._children(box):
                     children.append((a, b, c, d))
                     for p in ((a, c), (a, d), (b, c), (b, d)):
@@ -323,25 +330,65 @@ class Refinement:
         """Uniform, or a boundary already resolved to one step (:meth:`_resolved_strip`)."""
         return self._uniform(box) or self._resolved_strip(box)
 
-    def _resolved_strip(self, box: tuple[int, int, int, int]) -> bool:
-        """A cell one step wide and two long whose two long edges are each uniform.
-
-        The boundary crosses both short edges between simulated neighbours one
-        step apart, i.e. it is resolved to one step at both ends; the middle point
-        of each long edge takes the label its edge's two ends share (as any point
-        of a uniform cell does). Only a feature one step long, crossing between
-        two rows, could hide there.
-        """
+    @staticmethod
+    def _strip_points(
+        box: tuple[int, int, int, int],
+    ) -> tuple[tuple[tuple[int, int], tuple[int, int], tuple[int, int]], ...]:
+        """The two long edges of a 1 x 2 strip as (end, middle, end) points; none otherwise."""
         i0, i1, j0, j1 = box
         if (i1 - i0, j1 - j0) == (1, 2):
-            edges = ((slice(i0, i0 + 1), slice(j0, j1 + 1)), (slice(i1, i1 + 1), slice(j0, j1 + 1)))
-        elif (i1 - i0, j1 - j0) == (2, 1):
-            edges = ((slice(i0, i1 + 1), slice(j0, j0 + 1)), (slice(i0, i1 + 1), slice(j1, j1 + 1)))
-        else:
+            return tuple(((i, j0), (i, j0 + 1), (i, j1)) for i in (i0, i1))
+        if (i1 - i0, j1 - j0) == (2, 1):
+            return tuple(((i0, j), (i0 + 1, j), (i1, j)) for j in (j0, j1))
+        return ()
+
+    def _strip_middles(self, box: tuple[int, int, int, int]) -> list[tuple[int, int]]:
+        """The middles a strip that is not resolved (:meth:`_resolved_strip`) asks for:
+        those of its long edges whose ends disagree; once they are simulated, those of
+        its uniform edges whose neighbour across the strip disagrees with them."""
+        k, sim = self.key, self.simulated
+        edges = self._strip_points(box)
+        ask = [m for a, m, b in edges if k[a] != k[b] and not sim[m]]
+        if ask:
+            return ask
+        return [
+            m
+            for (a, m, _), (_, m_other, _) in (edges, edges[::-1])
+            if not sim[m] and not (sim[m_other] and k[m_other] == k[a])
+        ]
+
+    def _resolved_strip(self, box: tuple[int, int, int, int]) -> bool:
+        """A cell one step wide and two long where every point left unsimulated is sure of
+        its label up to a feature one step long.
+
+        Either (a) its two long edges are each uniform: the boundary crosses both
+        short edges between simulated neighbours one step apart, i.e. it is
+        resolved to one step at both ends, and the middle point of each long
+        edge takes the label its edge's two ends share (as any point of a
+        uniform cell does); or (b) each long edge is simulated whole, or has
+        ends that agree and a simulated neighbour across the strip (the other
+        edge's middle) with their label: its middle then takes the label of
+        three simulated neighbours, and every pair of neighbours with different
+        labels in the strip is simulated on both sides. A strip that is neither
+        asks for middles (:meth:`_strip_middles`) instead of being split: those
+        of the long edges whose ends disagree, then, if the boundary passes
+        next to a uniform edge's middle, that middle too. Only a feature one
+        step long could hide there.
+        """
+        edges = self._strip_points(box)
+        if not edges:
             return False
-        for sl in edges:
-            keys = self.key[sl][self.simulated[sl]]
-            if keys.size and not (keys == keys[0]).all():
+        k, sim = self.key, self.simulated
+        uniform = True  # (a)
+        for a, m, b in edges:
+            if k[a] != k[b] or (sim[m] and k[m] != k[a]):
+                uniform = False
+        if uniform:
+            return True
+        for (a, m, b), (_, m_other, _) in (edges, edges[::-1]):  # (b)
+            if sim[m]:
+                continue
+            if k[a] != k[b] or not sim[m_other] or k[m_other] != k[a]:
                 return False
         return True
 
@@ -545,16 +592,23 @@ class StreamRefinement(Refinement):
         flat = self._level[self._level < np.iinfo(np.int64).max]
         return np.bincount(flat).tolist() if flat.size else []
 
-    def _wait(self, box: Box, depth: int) -> bool:
-        """Register a cell for its corners not simulated yet (requesting them); True if none."""
+    def _wait(self, box: Box, depth: int, middles: list[tuple[int, int]] | None = None) -> bool:
+        """Register a cell for its corners not simulated yet (requesting them); True if none.
+
+        ``middles``: instead of the corners, the middles a strip asks for
+        (:meth:`Refinement._strip_middles`), at the level of a halving of the strip."""
         self._depth[box] = depth
         i0, i1, j0, j1 = box
         n_b = self.shape[1]
-        corners = {i0 * n_b + j0, i0 * n_b + j1, i1 * n_b + j0, i1 * n_b + j1}  # flat indices
+        if middles is None:  # flat indices
+            corners = {i0 * n_b + j0, i0 * n_b + j1, i1 * n_b + j0, i1 * n_b + j1}
+            at = depth
+        else:
+            corners, at = {i * n_b + j for i, j in middles}, depth + 1
         level, simulated = self._level, self.simulated.reshape(-1)
         for f in corners:
-            if depth < level[f]:
-                level[f] = depth
+            if at < level[f]:
+                level[f] = at
         missing = [f for f in corners if not simulated[f]]
         if not missing:
             return True
@@ -577,6 +631,10 @@ class StreamRefinement(Refinement):
             if i1 - i0 <= 1 and j1 - j0 <= 1:
                 continue  # every point of the cell is a simulated corner
             depth = self._depth[box] + 1
+            if self._strip_points(box):  # a strip asks for middles, is not split
+                if self._wait(box, depth - 1, self._strip_middles(box)):
+                    queue.append(box)  # its middles were simulated meanwhile
+                continue
             queue.extend(c for c in self._children(box) if self._wait(c, depth))
 
 
