@@ -35,6 +35,19 @@ their ratio, the labels equal to the dense grid's and the verification sample;
 
     python benchmarks/bench_adaptive.py --cluster --size 1000x500 --scenes fig04:gamma1_kappa1
 
+``--replay``: the refinement alone on the ``--cluster`` scenes, replayed on the
+dense grid's fields (each point's regime, flags and ``cycles`` from the dense
+grid, computed once in this process and cached in ``--cache``; no simulation,
+seconds once cached). A point's classification does not depend on the other
+points of its call (cold starts), so the simulated points, the labels and the
+verification sample are those of a study run. Prints the simulated fraction,
+the share of the dense grid's simulated cycles the simulated points hold, and
+its inverse (the CPU ratio a study would reach if a point cost its cycles and
+nothing else cost anything), the labels equal to the dense grid's and the
+verification sample:
+
+    python benchmarks/bench_adaptive.py --replay --size 1000x500 --scenes fig04:gamma1_kappa1
+
 ``--example N``: ``study run examples/adaptive.toml`` through the CLI N times
 (a fresh process each, the compiled kernel cached; small studies compute in
 threads of that process, :func:`study.drive.local_threads`), wall and CPU seconds:
@@ -279,6 +292,82 @@ def cluster_main(args, n_r: int, n_beta: int) -> int:
     return 0
 
 
+#: Dense-grid fields the replay needs (the refinement's key fields and the cost).
+REPLAY_FIELDS = ("regime", "converged", "start_dependent", "cycles")
+
+
+def dense_fields(sc: dict, n_r: int, n_beta: int, cache: Path, fidelity: str):
+    """Scene, axes and :data:`REPLAY_FIELDS` of the dense grid of a ``--cluster`` scene
+    (from the cache, or computed in this process and cached)."""
+    import tempfile
+
+    text = STUDY.format(fidelity=fidelity, mode="", n_r=n_r, n_beta=n_beta, **sc)
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "s.toml"
+        path.write_text(text, encoding="utf-8")
+        spec = Study.from_toml(path).scenes[0]
+    scene, r, beta = spec.base_scene, spec.r.values_array(), spec.beta.values_array()
+    h = hashlib.sha256(
+        repr((scene.to_dict(), fidelity, REPLAY_FIELDS)).encode() + r.tobytes() + beta.tobytes()
+    ).hexdigest()[:16]
+    path = cache / f"fields-{h}.npz"
+    if path.is_file():
+        with np.load(path) as z:
+            return scene, r, beta, {k: z[k] for k in REPLAY_FIELDS}
+    R, B = np.meshgrid(r, beta, indexing="ij")
+    res = classify(scene, R, B, fidelity=fidelity)
+    fields = {k: np.asarray(getattr(res, k)) for k in REPLAY_FIELDS}
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.savez(path, **fields)
+    return scene, r, beta, fields
+
+
+def replay_main(args, n_r: int, n_beta: int) -> int:
+    """The refinement of each ``--cluster`` scene replayed on its dense grid's fields."""
+    from analysis.adaptive import closed_form_hint
+    from study.adaptive import VERIFY_SEED
+    from tasks.adaptive import DEFAULT_VERIFY_MIN, StreamRefinement
+
+    print(
+        f"refinement replayed on the dense grid's fields, {n_r} x {n_beta}, fidelity "
+        f"{args.fidelity}, coarse_step {args.coarse_step}, hint {args.hint}, "
+        "verify_fraction 0.005"
+    )
+    print(
+        "| scene | points | % simulated | % of the dense grid's cycles | cycles ratio "
+        "| labels equal to dense | of the differing, determined in the dense grid "
+        "| verification | refinement CPU s |"
+    )
+    print("|" + "---|" * 9)
+    for sc in cluster_scenes(args.scenes):
+        scene, r, beta, dense = dense_fields(sc, n_r, n_beta, args.cache, args.fidelity)
+        t = time.process_time()
+        hint = None if args.hint == "none" else closed_form_hint(scene, r, beta, args.hint)
+        layout = {k: (str(v.dtype), 0) for k, v in dense.items()}
+        ref = StreamRefinement((n_r, n_beta), args.coarse_step, hint, fields=layout)
+        while (idx := ref.take(64)).size:
+            ij = np.unravel_index(idx, ref.shape)
+            ref.accept(idx, {k: v[ij] for k, v in dense.items()})
+        sample = ref.verification(0.005, DEFAULT_VERIFY_MIN, VERIFY_SEED)
+        ij = np.unravel_index(sample, ref.shape)
+        v = ref.accept_verification(sample, {k: f[ij] for k, f in dense.items()})
+        out = ref.result()
+        cpu = time.process_time() - t
+        sim = out["simulated"]
+        cycles = dense["cycles"].astype(float)
+        share = cycles[sim].sum() / cycles.sum()
+        differ = out["regime"] != dense["regime"]
+        n = sim.size
+        print(
+            f"| {sc['name']} | {n:,} | {100 * sim.mean():.2f} | {100 * share:.2f} "
+            f"| {1 / share:.1f} | {percent(n - int(differ.sum()), n, 4)} "
+            f"({int(differ.sum())} differ) | {int((differ & (dense['regime'] >= 0)).sum())} "
+            f"| {v.agree} / {v.sampled} | {cpu:.2f} |",
+            flush=True,
+        )
+    return 0
+
+
 def example_main(args) -> int:
     """``study run examples/adaptive.toml`` (the CLI, a fresh process each time, the
     compiled kernel in its cache): wall seconds and the CPU seconds of the process."""
@@ -321,8 +410,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--fidelity", default="balanced")
     ap.add_argument("--cache", type=Path, default=Path(".bench_adaptive_cache"))
     ap.add_argument("--cluster", action="store_true", help="adaptive vs dense studies on Dask")
+    ap.add_argument("--replay", action="store_true", help="refinement on cached dense fields")
     ap.add_argument("--workers", type=int, default=2, help="--cluster: worker processes")
-    ap.add_argument("--scenes", nargs="*", help="--cluster: fig04:gamma1_kappa1, dof3_mass_m2_m3")
+    ap.add_argument(
+        "--scenes", nargs="*", help="--cluster, --replay: fig04:gamma1_kappa1, dof3_mass_m2_m3"
+    )
     ap.add_argument("--no-dense", action="store_true", help="--cluster: adaptive studies only")
     ap.add_argument("--barriers", action="store_true", help="--cluster: the old waves too")
     ap.add_argument("--example", type=int, default=0, help="time the CLI on the example N times")
@@ -330,6 +422,8 @@ def main(argv: list[str] | None = None) -> int:
     n_r, n_beta = (int(x) for x in args.size.lower().split("x"))
     if args.example:
         return example_main(args)
+    if args.replay:
+        return replay_main(args, n_r, n_beta)
     if args.cluster:
         return cluster_main(args, n_r, n_beta)
     chosen = panels(args.panels)
