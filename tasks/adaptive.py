@@ -531,10 +531,14 @@ class StreamRefinement(Refinement):
 
     The result does not depend on the arrival order: a cell is split only when
     the points known so far prove it unsettled (:meth:`Refinement._settled`; more
-    points can only keep it unsettled) or it is hinted, and refinement ends only
-    when every unsplit cell is settled given every simulated point. Both this
-    and the wave refinement therefore end at the least such set of splits: the
-    same simulated points, the same labels (``tests/test_adaptive.py`` checks
+    points can only keep it unsettled) or it is hinted; a 1 x 2 strip asks for
+    a middle only when the points that end up simulated require it
+    (:meth:`Refinement._strip_middles`: a disagreeing edge, or a middle across
+    that disagrees; a strip settled earlier is examined again when a point
+    arrives on it); and refinement ends only when every unsplit cell is
+    settled given every simulated point. Both this and the wave refinement
+    therefore end at the least such set of splits and middles: the same
+    simulated points, the same labels (``tests/test_adaptive.py`` checks
     shuffled orders against the waves).
     """
 
