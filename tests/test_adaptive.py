@@ -393,7 +393,12 @@ def _checker(i, j):  # many small features: cells reopened by their neighbours
     return np.where(((i // 13) + (j // 7)) % 3 == 0, regimes.NO_MOTION, regimes.CONTINUOUS)
 
 
-@pytest.mark.parametrize("label_fn", [map_with_features, _disc_and_sine, _checker])
+def _slanted_three(i, j):  # slanted boundaries meeting: strips asking for second middles
+    lab = np.where(j < 2.5 * (i - 40) + 3, regimes.CONTINUOUS, regimes.STICK_SLIP)
+    return np.where(j > 0.45 * i + 50, regimes.NO_MOTION, lab)
+
+
+@pytest.mark.parametrize("label_fn", [map_with_features, _disc_and_sine, _checker, _slanted_three])
 @pytest.mark.parametrize("coarse_step", [8, 16])
 def test_no_barriers_equals_waves_in_any_order(label_fn, coarse_step):
     batch = synthetic(label_fn)
