@@ -97,7 +97,14 @@ with numba_cache.kernel_cache():
         TWO_PI,
     )
     from tasks.kernel.orbit import ORBIT_RTOL, orbit_holds
-    from tasks.kernel.point import run_points, run_points_design, simulate_point, warm_point
+    from tasks.kernel.point import (
+        polish_point,
+        run_points,
+        run_points_design,
+        run_points_seeded,
+        simulate_point,
+        warm_point,
+    )
     from tasks.kernel.propagation import derivative_bounds, evaluate, event_function
     from tasks.kernel.records import sample_states, trace_cycles
     from tasks.kernel.shooting import SETTLE_CYCLES, SETTLE_PHASES, newton_settle, settle_at_phases
@@ -155,9 +162,11 @@ __all__ = [
     "orbit_design",
     "orbit_designs",
     "orbit_holds",
+    "polish_point",
     "run_cycle",
     "run_points",
     "run_points_design",
+    "run_points_seeded",
     "sample_states",
     "settle_at_phases",
     "simulate_point",
