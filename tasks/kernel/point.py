@@ -622,7 +622,7 @@ def run_points_seeded(r, beta, scene, settings, samples, seeds):
                 accepted = out[i, OUT_CONVERGED] == 1.0
         if not accepted:
             simulate_point(r[i], beta[i], scene, settings, out[i], final[i], keep, kept)
-            if warm and _seeds_next(out[i]):
+            if warm and beta[i] > 0.0 and _seeds_next(out[i]):  # (beta = 0: closed form)
                 polish_point(r[i], beta[i], scene, settings, out[i], final[i], keep, kept)
             rec, nr = _check_orbit(r[i], beta[i], scene, settings, out[i], final[i], keep, kept[0])
             out[i, OUT_CYCLES] += spent
@@ -630,5 +630,5 @@ def run_points_seeded(r, beta, scene, settings, samples, seeds):
             point_design(
                 r[i], beta[i], scene, settings, out[i], final[i], samples, design[i], rec, nr
             )
-        seedable[i] = warm and _seeds_next(out[i])
+        seedable[i] = warm and beta[i] > 0.0 and _seeds_next(out[i])
     return out, final, design
