@@ -87,9 +87,19 @@ HELD_MARGIN_RTOL = 1e-9
 WARM_NEWTON = 6
 # The polish of a converged period-1 orbit (:func:`polish_point`): residual of the
 # Poincare map sought, relative to the motion (far below ``section_rtol``: the fixed
-# point then no longer depends on where the search started), and Newton steps.
+# point then no longer depends on where the search started), and Newton steps. The
+# map is known only as well as its events are located (``event_tol`` in tau), so the
+# residual sought is never below ``event_tol`` (the fast preset's 1e-9).
 POLISH_RTOL = 1e-12
 POLISH_NEWTON = 4
+
+
+@njit(cache=True)
+def _polish_rtol(settings):
+    """Residual a polished fixed point reaches: ``POLISH_RTOL``, or ``event_tol`` if larger."""
+    return max(POLISH_RTOL, settings[0])
+
+
 # One early shot (before shooting_after) once this many cycles (and min_cycles)
 # have run and the event pattern (chart, stops, reversals) has repeated this many
 # times in a row.
@@ -420,8 +430,9 @@ def warm_point(r, beta, scene, settings, out, final, seed, keep, kept):
     state, phase, section phase theta). Newton's method on this point's
     Poincare map at the same section (:func:`tasks.kernel.shooting._shoot`, at
     most ``WARM_NEWTON`` steps) starts from the seed and must reach a residual
-    of ``POLISH_RTOL`` of the motion (the polish of :func:`polish_point`, so the
-    fixed point does not depend on the seed), not unstable; its period's
+    of ``POLISH_RTOL`` of the motion (or ``event_tol``: :func:`_polish_rtol`; the
+    polish of :func:`polish_point`, so the fixed point does not depend on the
+    seed), not unstable; its period's
     statistics give the fields (:func:`_finish`) and the creep rule applies
     (:func:`_creep_limit`). Only a moving orbit is accepted (one that the creep
     rule calls no motion is left to the held start, which decides how no motion
@@ -464,7 +475,7 @@ def warm_point(r, beta, scene, settings, out, final, seed, keep, kept):
         stats,
         ctx,
         work,
-        POLISH_RTOL,
+        _polish_rtol(settings),
         _floor(ctx, X_held),
         WARM_NEWTON,
         theta,
@@ -494,7 +505,8 @@ def polish_point(r, beta, scene, settings, out, final, keep, kept):
     where the search started. Newton's method from the converged section
     (:func:`tasks.kernel.shooting._shoot`, at most ``POLISH_NEWTON`` steps, the
     Jacobian and steps on the followed map, each step verified on a full
-    period) brings the residual to ``POLISH_RTOL`` of the motion, so that the
+    period) brings the residual to ``POLISH_RTOL`` of the motion (or to
+    ``event_tol``, to which the map itself is known: :func:`_polish_rtol`), so that the
     fields of the orbit agree whatever seeded the search (to about
     ``POLISH_RTOL`` over one minus the slowest Floquet multiplier). The fields
     are then those of the polished period (:func:`_finish`, creep rule) and
@@ -513,7 +525,7 @@ def polish_point(r, beta, scene, settings, out, final, keep, kept):
         stats,
         ctx,
         work,
-        POLISH_RTOL,
+        _polish_rtol(settings),
         _floor(ctx, X_held),
         POLISH_NEWTON,
         theta,
