@@ -218,15 +218,27 @@ def assert_progress_complete(stderr: str, n_points: int) -> None:
 
 def assert_fields_equal(node: xr.Dataset, index: dict, expected) -> None:
     """Every result field of ``node`` at ``index`` equals the ClassifyResult ``expected``;
-    ``regime_rest`` only where rest was a start (else it is not written: all -127)."""
+    ``regime_rest`` only where rest was a start (else it is not written: all -127).
+
+    The study's chunks group the points otherwise than the one call of ``expected``,
+    so with warm starts (the default) the labels are equal, the continuous fields
+    agree to the polish of the orbits (the fast preset's event times, 1e-9: within
+    1e-7 of the field's scale) and ``cycles``, the periods each search took from its
+    seed, is not compared (docs/api.md, "Warm starts")."""
     rest = (expected.regime_rest != regimes.NOT_COMPUTED).any()
     assert ("regime_rest" in node.data_vars) == rest
     for name in FIELDS:
-        if name == "regime_rest" and not rest:
+        if name == "regime_rest" and not rest or name == "cycles":
             continue
         da = node[name].isel(index) if index else node[name]
         da = da.transpose(*(d for d in ("point", "r", "beta", "mass") if d in da.dims))
-        np.testing.assert_array_equal(da.values, getattr(expected, name), err_msg=name)
+        want = np.asarray(getattr(expected, name))
+        if want.dtype.kind == "f":
+            np.testing.assert_array_equal(np.isnan(da.values), np.isnan(want), err_msg=name)
+            scale = np.nanmax(np.abs(want), initial=0.0)
+            np.testing.assert_allclose(da.values, want, rtol=0, atol=1e-7 * scale, err_msg=name)
+        else:
+            np.testing.assert_array_equal(da.values, want, err_msg=name)
 
 
 def assert_cf_and_boundaries(
