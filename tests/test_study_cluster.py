@@ -282,19 +282,39 @@ def assert_provenance(attrs: dict, study_text: str) -> None:
     assert "study run" in attrs["history"]
 
 
-def assert_same_result(a: Path, b: Path) -> None:
-    """All groups, variables, coordinates and attributes equal (history aside)."""
+def assert_same_result(a: Path, b: Path, regrouped: bool = False) -> None:
+    """All groups, variables, coordinates and attributes equal (history aside).
+
+    ``regrouped``: the points were grouped into other calls (an adaptive map's
+    point lists formed anew on a resumed run), so with warm starts ``cycles`` may
+    differ and the floating fields agree to the polish of the orbits (here the fast
+    preset's: within 1e-7 of each field's scale, docs/api.md "Warm starts"); every
+    other variable, coordinate and attribute is still equal."""
+    loose = {"cycles"} | (set(FIELDS) - {"regime"} if regrouped else set())
     with xr.open_datatree(a) as ta, xr.open_datatree(b) as tb:
         assert sorted(ta.groups) == sorted(tb.groups)
         for group in ta.groups:
-            da_, db_ = ta[group].to_dataset(), tb[group].to_dataset()
+            da_, db_ = ta[group].to_dataset().load(), tb[group].to_dataset().load()
             da_.attrs.pop("history", None)
             db_.attrs.pop("history", None)
-            xr.testing.assert_identical(da_.load(), db_.load())
+            if regrouped:
+                for name in sorted(loose & set(da_.data_vars)):
+                    x, y = da_[name].values, db_[name].values
+                    if name != "cycles" and x.dtype.kind == "f":
+                        np.testing.assert_array_equal(np.isnan(x), np.isnan(y), err_msg=name)
+                        scale = np.nanmax(np.abs(x), initial=0.0)
+                        np.testing.assert_allclose(x, y, rtol=0, atol=1e-7 * scale, err_msg=name)
+                    elif name != "cycles":
+                        np.testing.assert_array_equal(x, y, err_msg=name)
+                drop = sorted(loose & set(da_.data_vars))
+                da_, db_ = da_.drop_vars(drop), db_.drop_vars(drop)
+            xr.testing.assert_identical(da_, db_)
     with netCDF4.Dataset(a) as na, netCDF4.Dataset(b) as nb:  # the raw bytes of the codes too
         for g in [na, *na.groups.values()]:
             h = nb if g is na else nb.groups[g.name]
             for name, var in g.variables.items():
+                if regrouped and name in loose:
+                    continue
                 x, y = var[...], h.variables[name][...]
                 np.testing.assert_array_equal(np.ma.getdata(x), np.ma.getdata(y), err_msg=name)
 

@@ -33,9 +33,10 @@ Modules, one job each (dependencies point down the list):
 * :mod:`~tasks.kernel.records`: recorded stretches of motion (:func:`trace_cycles`);
 * :mod:`~tasks.kernel.design`: amplitudes, contact force amplitude, dissipation;
 * :mod:`~tasks.kernel.point`: the steady-state search of a point from the held start
-  (:func:`simulate_point`) or from a neighbour's orbit (:func:`warm_point`), and of
-  many (:func:`run_points`, with the design pass on the orbit check's replay:
-  :func:`run_points_design`).
+  (:func:`simulate_point`) or from a neighbour's orbit (:func:`warm_point`), the polish
+  of its orbit (:func:`polish_point`), and of many (:func:`run_points`, with the design
+  pass on the orbit check's replay: :func:`run_points_design`, and seeded by solved
+  neighbours: :func:`run_points_seeded`).
 
 Everything is compiled with numba (``cache=True``); with ``NUMBA_DISABLE_JIT=1``
 the same code runs as plain Python (slowly). numba's on-disk cache checks only
