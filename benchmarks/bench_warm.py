@@ -8,11 +8,14 @@ Run from the repository root::
 
 In one process, on a 250 x 100 (r, beta) panel of Fig. 4 (2DOF, ground contact
 on m_1, gamma = 1, kappa = 0.5) and of Fig. 10b (5DOF, ground contact on m_2):
-``tasks.classify`` (balanced) with every point from the held start (the
-default, ``warm=False``) and with warm starts (``warm=True``), each with and
-without the design pass (``design=False``), one call per panel,
-compiled beforehand; then the points of each regime class (of the default run)
-alone, with and without the design pass, for the cost and cycles per class.
+``tasks.classify`` (balanced; each configuration run twice, in order and in
+reverse order, the lesser CPU time kept) with warm starts (the default, ``warm=True``:
+seeds from solved neighbours, moving orbits polished) and with every point
+from the held start (``warm=False``), each with and without the design pass
+(``design=False``), one call per panel in the study's order (r outer, beta
+inner), compiled beforehand; then the points of each regime class (of the cold
+run) alone, with and without the design pass, for the cost and cycles per
+class.
 The paper's method (``tasks.baseline.paper_method``: RK45 + events, 100
 cycles from rest, scipy) runs on a seeded sample of the same points; the
 ratio is its mean time per point over each configuration's.
@@ -47,13 +50,26 @@ PANELS = {
     "Fig. 10b (5DOF, m_2)": (Scene("ground", 5, 2), 2.0),
 }
 CONFIGS = {
-    "cold + design (default)": {},
-    "cold, no design": {"design": False},
-    "warm + design": {"warm": True},
+    "warm + design (default)": {"warm": True},
     "warm, no design": {"warm": True, "design": False},
+    "cold + design": {"warm": False},
+    "cold, no design": {"warm": False, "design": False},
 }
 SEED = 19
 CLASSES = {0: "no motion", 1: "stick-slip", 2: "continuous"}
+
+
+#: Fields compared between two groupings (relative to their largest value on the panel).
+CONTINUOUS = ("slip_amplitude", "stick_fraction", "amplitude", "contact_force_amplitude")
+CONTINUOUS += ("dissipation",)
+
+
+def _rel(a: np.ndarray, b: np.ndarray) -> float:
+    """Largest difference relative to the largest magnitude (inf if NaN at other points)."""
+    if not np.array_equal(np.isfinite(a), np.isfinite(b)):
+        return np.inf
+    fin = np.isfinite(a)
+    return float(np.max(np.abs(a[fin] - b[fin]), initial=0.0) / max(np.abs(a[fin]).max(), 1e-300))
 
 
 def table(header: list[str], rows: list[list[object]]) -> str:
@@ -74,24 +90,35 @@ def main() -> None:
     classify(Scene("ground", 2), [0.5, 1.5], [0.1, 0.6])
     timing_rows, label_rows, class_rows = [], [], []
     for title, (scene, beta_max) in PANELS.items():
-        r, beta = np.meshgrid(np.linspace(0.02, 2.5, n_r), np.linspace(0.0, beta_max, n_beta))
+        r, beta = np.meshgrid(
+            np.linspace(0.02, 2.5, n_r), np.linspace(0.0, beta_max, n_beta), indexing="ij"
+        )
         results, per_point = {}, {}
-        for name, kw in CONFIGS.items():
+        # each configuration twice, in order and in reverse order: the lesser CPU time
+        # (a loaded machine inflates CPU times too, unevenly over a run)
+        names = list(CONFIGS)
+        for name in names + names[::-1]:
             t0 = time.process_time()
-            results[name] = classify(scene, r, beta, **kw)
-            per_point[name] = (time.process_time() - t0) / r.size
-        cold, warm = results["cold + design (default)"], results["warm, no design"]
+            results[name] = classify(scene, r, beta, **CONFIGS[name])
+            cpu = (time.process_time() - t0) / r.size
+            per_point[name] = min(per_point.get(name, np.inf), cpu)
+        cold, warm = results["cold + design"], results["warm + design (default)"]
         pick = np.random.default_rng(SEED).choice(r.size, n_paper, replace=False)
         t0 = time.process_time()
         paper = np.array([paper_method(scene, r.flat[i], beta.flat[i])[0] for i in pick])
         paper_s = (time.process_time() - t0) / n_paper
         moving = cold.regime > 0
+        # another grouping of the same points: beta outer, r inner (warm, with design)
+        other = classify(scene, r.T, beta.T, warm=True)
+        spread = max(
+            _rel(getattr(warm, f), np.swapaxes(getattr(other, f), 0, 1)) for f in CONTINUOUS
+        )
         for code, klass in CLASSES.items():  # each regime class alone, from the held start
             m = cold.regime == code
             if not m.any():
                 continue
             cost = []
-            for kw in ({}, {"design": False}):
+            for kw in ({"warm": False}, {"warm": False, "design": False}):
                 t0 = time.process_time()
                 classify(scene, r[m], beta[m], **kw)
                 cost.append((time.process_time() - t0) / m.sum())
@@ -113,6 +140,8 @@ def main() -> None:
                 f"{np.sum(warm.stops_per_cycle == cold.stops_per_cycle)} / {r.size}",
                 f"{np.nanmax(np.abs(warm.stick_fraction - cold.stick_fraction)):.1e}",
                 f"{cold.cycles[moving].mean():.1f} -> {warm.cycles[moving].mean():.1f}",
+                f"{spread:.1e}",
+                str(int(np.sum(other.regime.T != warm.regime))),
                 f"{np.sum(paper == cold.regime.flat[pick])} / {n_paper}",
                 f"{np.sum(paper == warm.regime.flat[pick])} / {n_paper}",
             ]
@@ -143,6 +172,8 @@ def main() -> None:
                 "stops warm = cold",
                 "max |stick fraction diff|",
                 "cycles per moving point cold -> warm",
+                "max rel field diff, warm in r order vs beta order",
+                "labels differing between the two orders",
                 "paper = cold",
                 "paper = warm",
             ],

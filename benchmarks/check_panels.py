@@ -3,18 +3,22 @@
 Run from the repository root::
 
     .venv/bin/python benchmarks/check_panels.py save before.npz [--size 100x40] [--code DIR]
-        [--start rest]
+        [--start rest] [--warm off] [--starts held,rest]
     .venv/bin/python benchmarks/check_panels.py save after.npz [--size 100x40]
     .venv/bin/python benchmarks/check_panels.py compare before.npz after.npz
 
 ``save`` classifies every scene of ``examples/fig*.toml`` (23 panels; held
 start or ``--start rest``, preset ``balanced``, design quantities on) on a grid
 of ``--size`` points over the panel's r and beta ranges (default: the
-example's own 250 x 100) and saves every field with the CPU seconds per panel;
-``--code DIR`` imports ``tasks`` from another checkout (e.g. main before a
-change). ``compare`` prints, per panel, the points whose regime or stops differ
-(they must be none), the largest difference of each other field relative to
-its scale on the panel (``slip_amplitude``, ``stick_fraction``, ``amplitude``,
+example's own 250 x 100), one call per panel in the study's order (r outer,
+beta inner), and saves every field with the CPU seconds per panel; ``--code
+DIR`` imports ``tasks`` from another checkout (e.g. main before a change);
+``--warm on|off`` sets the warm starts (default: the checkout's default);
+``--starts held,rest`` compares starts at every point (``start_dependent``,
+``regime_rest``, ``regimes_reached`` are saved and compared too). ``compare``
+prints, per panel, the points whose regime, stops or start fields differ (they
+must be none), the largest difference of each other field relative to its
+scale on the panel (``slip_amplitude``, ``stick_fraction``, ``amplitude``,
 ``contact_force_amplitude``, ``dissipation``: at most about the steady-state
 tolerance), the mean cycles per point by regime class and the CPU time, before
 and after.
@@ -51,6 +55,8 @@ FIELDS = (
     "contact_force_amplitude",
     "dissipation",
 )
+#: Fields of several starts (``--starts``), compared point for point when both runs have them.
+START_FIELDS = ("regime_rest", "regimes_reached", "start_dependent")
 #: Fields compared relative to their largest magnitude on the panel.
 SCALED = ("slip_amplitude", "stick_fraction", "amplitude", "contact_force_amplitude", "dissipation")
 CLASSES = {"no motion": 0, "stick-slip": 1, "continuous": 2}
@@ -69,16 +75,18 @@ def panels(size: tuple[int, int] | None):
             yield f"{path.stem}/{spec.name}", spec.base_scene, r, beta
 
 
-def save(output: Path, size: tuple[int, int] | None, only: str | None, start: str) -> None:
-    classify(Scene("ground", dof=2), [0.5, 1.5], [0.1, 0.6])  # compile / load the cache
+def save(
+    output: Path, size: tuple[int, int] | None, only: str | None, start: str, settings: dict
+) -> None:
+    classify(Scene("ground", dof=2), [0.5, 1.5], [0.1, 0.6], **settings)  # compile / load
     arrays = {}
     for name, scene, r, beta in panels(size):
         if only and only not in name:
             continue
         t0 = time.process_time()
-        res = classify(scene, r, beta, initial_condition=start)
+        res = classify(scene, r, beta, initial_condition=start, **settings)
         cpu = time.process_time() - t0
-        for field in FIELDS:
+        for field in FIELDS + (START_FIELDS if "starts" in settings else ()):
             arrays[f"{name}|{field}"] = np.asarray(getattr(res, field))
         arrays[f"{name}|cpu"] = np.array(cpu)
         print(f"{name}: {r.size} points, {cpu / r.size * 1e6:.0f} us/pt", flush=True)
@@ -110,6 +118,12 @@ def compare(before: Path, after: Path) -> int:
         sa, sb = a[f"{name}|stops_per_cycle"], b[f"{name}|stops_per_cycle"]
         n_reg = int(np.sum(ra != rb))
         n_stops = int(np.sum(sa != sb))
+        for f in START_FIELDS:  # several starts: where both runs compared them
+            if f"{name}|{f}" in a.files and f"{name}|{f}" in b.files:
+                n_start = int(np.sum(a[f"{name}|{f}"] != b[f"{name}|{f}"]))
+                n_reg += n_start
+                if n_start:
+                    print(f"    {name}: {n_start} points differ in {f}")
         bad += n_reg + n_stops
         cells = [name, str(ra.size), str(n_reg), str(n_stops)]
         cells += [f"{_scaled_diff(a[f'{name}|{f}'], b[f'{name}|{f}']):.1e}" for f in SCALED]
@@ -145,13 +159,20 @@ def main() -> None:
     s.add_argument("--only", default=None, help="only panels whose name contains this")
     s.add_argument("--start", default="held", help="initial condition: held (default) or rest")
     s.add_argument("--code", default=None, help="import tasks from this checkout instead")
+    s.add_argument(
+        "--warm", choices=("on", "off"), default=None, help="warm starts (default: as set)"
+    )
+    s.add_argument("--starts", default=None, help="starts to compare, e.g. held,rest")
     c = sub.add_parser("compare")
     c.add_argument("before", type=Path)
     c.add_argument("after", type=Path)
     args = ap.parse_args()
     if args.cmd == "save":
         size = tuple(int(v) for v in args.size.split("x")) if args.size else None
-        save(args.output, size, args.only, args.start)
+        settings = {} if args.warm is None else {"warm": args.warm == "on"}
+        if args.starts:
+            settings["starts"] = tuple(args.starts.split(","))
+        save(args.output, size, args.only, args.start, settings)
     else:
         sys.exit(compare(args.before, args.after))
 

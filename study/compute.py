@@ -17,6 +17,14 @@ from tasks.scene import Scene
 def compute_chunk(task: dict) -> dict[str, np.ndarray]:
     """Run ``tasks.classify`` on the points of one chunk.
 
+    The points of a chunk are classified in one call, in order (a grid block: r
+    outer, beta inner; a point list: its order), so with the setting ``warm`` (on
+    by default, :mod:`tasks.fidelity`) each point's search starts from the orbit
+    of a close point already solved in the chunk (:mod:`tasks.seeds`). The labels
+    do not depend on it, the other fields only to about 1e-9 (``cycles``
+    excepted), and the same chunk gives the same arrays to the bit on every run
+    (a resumed study recomputes a missing chunk exactly).
+
     Parameters
     ----------
     task : dict

@@ -11,6 +11,7 @@ from tasks.fidelity import Settings, resolve
 from tasks.model import SceneModes, scene_modes
 from tasks.result import DESIGN_FIELDS, FIELDS, ClassifyResult
 from tasks.scene import Scene
+from tasks.seeds import warm_seeds
 
 _IC_CODES = {name: code for code, name in regimes.INITIAL_CONDITIONS.items()}
 
@@ -100,10 +101,14 @@ def classify(
         Overrides of single settings, e.g. ``max_cycles=5000``; several starts
         per point with ``starts=("held", "rest")`` and ``n_random=4`` (seeded
         random starts, ``seed=0``; :mod:`tasks.fidelity`). Each start costs one
-        more simulation of every point. ``warm=True`` seeds a point's search
-        with the converged orbit of a close point before it in the call (same
-        labels, fewer periods; the other fields agree to the steady-state
-        tolerance); ``design=False`` skips the design quantities (then None).
+        more simulation of every point. Warm starts (``warm=True``, the
+        default) seed a point's search with the converged orbit of a close
+        point before it in the call (:mod:`tasks.seeds`: the same labels,
+        fewer periods; moving orbits polished to the fixed point, so the other
+        fields agree to about 1e-9 whatever the grouping, ``cycles`` excepted);
+        only the first start is seeded. ``warm=False`` runs every point from
+        its start alone; ``design=False`` skips the design quantities (then
+        None).
 
     Returns
     -------
@@ -148,7 +153,12 @@ def classify(
     numba_cache.announce_compile()  # one line on stderr before a first compile
     # the design quantities of the first start's orbit, on the orbit check's replay
     samples = kernel.DESIGN_SAMPLES if resolved.design else 0
-    out, _, design = kernel.run_points_design(flat_r, flat_beta, scene_args, first, samples)
+    # warm starts: the held start seeded by earlier points of the call (tasks.seeds)
+    if first[-1]:
+        seeds = warm_seeds(flat_r, flat_beta, float(scene_args[5][-1]))
+    else:
+        seeds = np.full((flat_r.size, 0), -1, dtype=np.int64)
+    out, _, design = kernel.run_points_seeded(flat_r, flat_beta, scene_args, first, samples, seeds)
     design = design if resolved.design else None
     others = [
         kernel.run_points(flat_r, flat_beta, scene_args, settings_args(resolved, c))[0]

@@ -25,16 +25,22 @@ max_work           2e6     2e7       2e8      work units per point before WORK_L
 growth_factor      1e3     1e4       1e5      section growth (vs. start) flagged UNBOUNDED
 =================  ======  ========  =======  ============================================
 
-What is computed (the same in every preset): ``warm`` (False) seeds each point's
-steady-state search with the converged orbit of the point before it in the call
-when that one is close (``tasks.kernel.point.run_points``: the same labels and
-stops, stick fractions to 1e-6, fewer periods, docs/theory.md 3, "One regime per
-point"; the other fields then agree only to the steady-state tolerance and
-depend on how points are grouped into calls, so it is off by default and on in
-:func:`tasks.trace_boundaries`, which uses only the labels); ``design`` (True)
-computes the design quantities (amplitudes, contact force amplitude,
-dissipation) of every orbit; with ``design=False`` they are not computed and
-the result's design fields are None (:data:`tasks.result.DESIGN_FIELDS`).
+What is computed (the same in every preset): ``warm`` (True) seeds each point's
+steady-state search with the converged orbit of a close point solved before it
+in the same call (``tasks.seeds``, ``tasks.kernel.point.run_points_seeded``;
+dense grid blocks, point lists of adaptive maps, traced columns), and polishes
+every moving period-1 orbit, seeded or not, to the fixed point of its Poincare
+map (residual 1e-12 of the motion). The labels (regime, stops, period, creep
+flag) are those of the held start whatever the seeds (docs/theory.md 3, "One
+regime per point"), the other fields agree across any grouping of the points
+to about 1e-9 (``cycles`` excepted: it counts the periods the search took), and
+the same points in the same order give the same result to the bit (a chunk
+recomputed on resume). ``warm=False`` runs every point from the held start
+without polish: the fields then hold to ``section_rtol`` and do not depend on
+the call at all. ``design`` (True) computes the design quantities (amplitudes,
+contact force amplitude, dissipation) of every orbit; with ``design=False``
+they are not computed and the result's design fields are None
+(:data:`tasks.result.DESIGN_FIELDS`).
 
 Starts (the same in every preset): ``initial_condition`` ("held") is the start of
 a single run; ``starts`` (e.g. ``("held", "rest")``) lists the starts to compare,
@@ -132,7 +138,7 @@ class Settings:
     starts: tuple[str, ...] = ()
     n_random: int = 0
     seed: int = 0
-    warm: bool = False
+    warm: bool = True
     design: bool = True
 
     def __post_init__(self) -> None:

@@ -153,7 +153,7 @@ def cache_dir() -> str:
 
 
 def is_compiled() -> bool:
-    """Whether the simulator's entry point (``run_points_design``, the one
+    """Whether the simulator's entry point (``run_points_seeded``, the one
     :func:`tasks.classify` and :func:`compile_simulator` call) is in the on-disk
     cache, for this source.
 
@@ -164,7 +164,7 @@ def is_compiled() -> bool:
     from tasks import kernel
 
     try:
-        return bool(kernel.run_points_design._cache._cache_file._load_index())
+        return bool(kernel.run_points_seeded._cache._cache_file._load_index())
     except Exception:  # numba internals differ: announce rather than stay silent
         return False
 

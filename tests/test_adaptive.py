@@ -305,7 +305,13 @@ def test_adaptive_study_on_local_cluster_resumes_after_interruption(tmp_path, mo
         sim = ds["simulated"].values
         dense = classify(scene, *np.meshgrid(r, beta, indexing="ij"), fidelity="fast")
         np.testing.assert_array_equal(ds["regime"].values[sim], dense.regime[sim])
-        np.testing.assert_array_equal(ds["cycles"].values[sim], dense.cycles[sim])
+        # (cycles depend on the warm starts' seeds; the other fields agree to the
+        # polish, here bounded by the fast preset's event times to 1e-9: docs/api.md)
+        for name in ("stops_per_cycle", "period", "asymptotic", "converged"):
+            np.testing.assert_array_equal(ds[name].values[sim], getattr(dense, name)[sim])
+        np.testing.assert_allclose(
+            ds["stick_fraction"].values[sim], dense.stick_fraction[sim], rtol=0, atol=1e-7
+        )
         assert (ds["regime"].values == dense.regime).mean() >= 0.99
     tree.close()
 
@@ -474,8 +480,10 @@ def test_warm_started_point_lists_give_the_same_map_in_any_order():
     """``[settings] warm = true``: each point list seeds its points from the orbits of
     the points before it in the list, and which points share a list depends on the
     arrival order. The labels (hence the refinement) do not: same simulated points and
-    regimes as cold point lists in every order; the other fields agree to the
-    steady-state tolerance (not to the bit: they depend on the seed)."""
+    regimes as cold point lists in every order; the other fields agree with the cold
+    ones to the steady-state tolerance (the fast preset's, on slow points), and between
+    two orders far closer (moving orbits polished to their fixed point; here bounded by
+    the fast preset's event times, 1e-9; cycles excepted)."""
     scene = Scene("ground", 2)
     r = np.linspace(0.05, 2.5, 80)
     beta = np.linspace(0.0, 1.5, 40)
@@ -488,15 +496,23 @@ def test_warm_started_point_lists_give_the_same_map_in_any_order():
         return run
 
     cold = shuffled_stream((r.size, beta.size), batch(False), 0, 8, dof=2).result()
+    warms = []
     for seed in range(2):
         warm = shuffled_stream((r.size, beta.size), batch(True), seed, 8, dof=2).result()
         np.testing.assert_array_equal(warm["simulated"], cold["simulated"])
         for name in ("regime", "converged", "stops_per_cycle", "period", "start_dependent"):
             np.testing.assert_array_equal(warm[name], cold[name], err_msg=name)
         moving = cold["regime"] > regimes.NO_MOTION
+        # the fast preset's looser section tolerance (1e-5; slow points: more)
         np.testing.assert_allclose(
-            warm["slip_amplitude"][moving], cold["slip_amplitude"][moving], rtol=1e-4
+            warm["slip_amplitude"][moving], cold["slip_amplitude"][moving], rtol=1e-3
         )
-        # the fast preset's looser section tolerance
         np.testing.assert_allclose(warm["stick_fraction"], cold["stick_fraction"], atol=1e-4)
+        warms.append(warm)
+    for name in ("slip_amplitude", "stick_fraction", "dissipation"):
+        a, b = warms[0][name], warms[1][name]
+        np.testing.assert_array_equal(np.isfinite(a), np.isfinite(b), err_msg=name)
+        fin = np.isfinite(a)
+        scale = np.abs(a[fin]).max()
+        np.testing.assert_allclose(a[fin], b[fin], rtol=0, atol=1e-7 * scale, err_msg=name)
     assert len(set(cold["regime"].ravel().tolist())) >= 2

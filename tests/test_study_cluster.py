@@ -218,15 +218,27 @@ def assert_progress_complete(stderr: str, n_points: int) -> None:
 
 def assert_fields_equal(node: xr.Dataset, index: dict, expected) -> None:
     """Every result field of ``node`` at ``index`` equals the ClassifyResult ``expected``;
-    ``regime_rest`` only where rest was a start (else it is not written: all -127)."""
+    ``regime_rest`` only where rest was a start (else it is not written: all -127).
+
+    The study's chunks group the points otherwise than the one call of ``expected``,
+    so with warm starts (the default) the labels are equal, the continuous fields
+    agree to the polish of the orbits (the fast preset's event times, 1e-9: within
+    1e-7 of the field's scale) and ``cycles``, the periods each search took from its
+    seed, is not compared (docs/api.md, "Warm starts")."""
     rest = (expected.regime_rest != regimes.NOT_COMPUTED).any()
     assert ("regime_rest" in node.data_vars) == rest
     for name in FIELDS:
-        if name == "regime_rest" and not rest:
+        if name == "regime_rest" and not rest or name == "cycles":
             continue
         da = node[name].isel(index) if index else node[name]
         da = da.transpose(*(d for d in ("point", "r", "beta", "mass") if d in da.dims))
-        np.testing.assert_array_equal(da.values, getattr(expected, name), err_msg=name)
+        want = np.asarray(getattr(expected, name))
+        if want.dtype.kind == "f":
+            np.testing.assert_array_equal(np.isnan(da.values), np.isnan(want), err_msg=name)
+            scale = np.nanmax(np.abs(want), initial=0.0)
+            np.testing.assert_allclose(da.values, want, rtol=0, atol=1e-7 * scale, err_msg=name)
+        else:
+            np.testing.assert_array_equal(da.values, want, err_msg=name)
 
 
 def assert_cf_and_boundaries(
@@ -270,19 +282,39 @@ def assert_provenance(attrs: dict, study_text: str) -> None:
     assert "study run" in attrs["history"]
 
 
-def assert_same_result(a: Path, b: Path) -> None:
-    """All groups, variables, coordinates and attributes equal (history aside)."""
+def assert_same_result(a: Path, b: Path, regrouped: bool = False) -> None:
+    """All groups, variables, coordinates and attributes equal (history aside).
+
+    ``regrouped``: the points were grouped into other calls (an adaptive map's
+    point lists formed anew on a resumed run), so with warm starts ``cycles`` may
+    differ and the floating fields agree to the polish of the orbits (here the fast
+    preset's: within 1e-7 of each field's scale, docs/api.md "Warm starts"); every
+    other variable, coordinate and attribute is still equal."""
+    loose = {"cycles"} | (set(FIELDS) - {"regime"} if regrouped else set())
     with xr.open_datatree(a) as ta, xr.open_datatree(b) as tb:
         assert sorted(ta.groups) == sorted(tb.groups)
         for group in ta.groups:
-            da_, db_ = ta[group].to_dataset(), tb[group].to_dataset()
+            da_, db_ = ta[group].to_dataset().load(), tb[group].to_dataset().load()
             da_.attrs.pop("history", None)
             db_.attrs.pop("history", None)
-            xr.testing.assert_identical(da_.load(), db_.load())
+            if regrouped:
+                for name in sorted(loose & set(da_.data_vars)):
+                    x, y = da_[name].values, db_[name].values
+                    if name != "cycles" and x.dtype.kind == "f":
+                        np.testing.assert_array_equal(np.isnan(x), np.isnan(y), err_msg=name)
+                        scale = np.nanmax(np.abs(x), initial=0.0)
+                        np.testing.assert_allclose(x, y, rtol=0, atol=1e-7 * scale, err_msg=name)
+                    elif name != "cycles":
+                        np.testing.assert_array_equal(x, y, err_msg=name)
+                drop = sorted(loose & set(da_.data_vars))
+                da_, db_ = da_.drop_vars(drop), db_.drop_vars(drop)
+            xr.testing.assert_identical(da_, db_)
     with netCDF4.Dataset(a) as na, netCDF4.Dataset(b) as nb:  # the raw bytes of the codes too
         for g in [na, *na.groups.values()]:
             h = nb if g is na else nb.groups[g.name]
             for name, var in g.variables.items():
+                if regrouped and name in loose:
+                    continue
                 x, y = var[...], h.variables[name][...]
                 np.testing.assert_array_equal(np.ma.getdata(x), np.ma.getdata(y), err_msg=name)
 

@@ -33,9 +33,10 @@ Modules, one job each (dependencies point down the list):
 * :mod:`~tasks.kernel.records`: recorded stretches of motion (:func:`trace_cycles`);
 * :mod:`~tasks.kernel.design`: amplitudes, contact force amplitude, dissipation;
 * :mod:`~tasks.kernel.point`: the steady-state search of a point from the held start
-  (:func:`simulate_point`) or from a neighbour's orbit (:func:`warm_point`), and of
-  many (:func:`run_points`, with the design pass on the orbit check's replay:
-  :func:`run_points_design`).
+  (:func:`simulate_point`) or from a neighbour's orbit (:func:`warm_point`), the polish
+  of its orbit (:func:`polish_point`), and of many (:func:`run_points`, with the design
+  pass on the orbit check's replay: :func:`run_points_design`, and seeded by solved
+  neighbours: :func:`run_points_seeded`).
 
 Everything is compiled with numba (``cache=True``); with ``NUMBA_DISABLE_JIT=1``
 the same code runs as plain Python (slowly). numba's on-disk cache checks only
@@ -97,7 +98,14 @@ with numba_cache.kernel_cache():
         TWO_PI,
     )
     from tasks.kernel.orbit import ORBIT_RTOL, orbit_holds
-    from tasks.kernel.point import run_points, run_points_design, simulate_point, warm_point
+    from tasks.kernel.point import (
+        polish_point,
+        run_points,
+        run_points_design,
+        run_points_seeded,
+        simulate_point,
+        warm_point,
+    )
     from tasks.kernel.propagation import derivative_bounds, evaluate, event_function
     from tasks.kernel.records import sample_states, trace_cycles
     from tasks.kernel.shooting import SETTLE_CYCLES, SETTLE_PHASES, newton_settle, settle_at_phases
@@ -155,9 +163,11 @@ __all__ = [
     "orbit_design",
     "orbit_designs",
     "orbit_holds",
+    "polish_point",
     "run_cycle",
     "run_points",
     "run_points_design",
+    "run_points_seeded",
     "sample_states",
     "settle_at_phases",
     "simulate_point",

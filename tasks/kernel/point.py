@@ -85,12 +85,21 @@ from tasks.regimes import (
 HELD_MARGIN_RTOL = 1e-9
 # Newton steps a warm start may take before the point falls back to the held start.
 WARM_NEWTON = 6
-# A point is seeded only by a neighbour within this relative distance in beta, and
-# close enough in r that the fastest free mode's phase over one period,
-# 2 pi sqrt(lambda_max) / r, differs by at most WARM_PHASE radians (else the orbit
-# moves too far between the two points for a few Newton steps to follow it).
-WARM_STEP = 0.05
-WARM_PHASE = 0.3
+# The polish of a converged period-1 orbit (:func:`polish_point`): residual of the
+# Poincare map sought, relative to the motion (far below ``section_rtol``: the fixed
+# point then no longer depends on where the search started), and Newton steps. The
+# map is known only as well as its events are located (``event_tol`` in tau), so the
+# residual sought is never below ``event_tol`` (the fast preset's 1e-9).
+POLISH_RTOL = 1e-12
+POLISH_NEWTON = 4
+
+
+@njit(cache=True)
+def _polish_rtol(settings):
+    """Residual a polished fixed point reaches: ``POLISH_RTOL``, or ``event_tol`` if larger."""
+    return max(POLISH_RTOL, settings[0])
+
+
 # One early shot (before shooting_after) once this many cycles (and min_cycles)
 # have run and the event pattern (chart, stops, reversals) has repeated this many
 # times in a row.
@@ -407,27 +416,42 @@ def simulate_point(r, beta, scene, settings, out, final, keep, kept):
 
 
 @njit(cache=True)
+def _floor(ctx, X_held):
+    """Scale of the motion a section residual is measured against when the motion is
+    small: the larger of the held start and the static response to the load."""
+    return max(_max_abs(X_held), _max_abs(np.linalg.solve(ctx[CTX_K], ctx[CTX_P])), 1e-300)
+
+
+@njit(cache=True)
 def warm_point(r, beta, scene, settings, out, final, seed, keep, kept):
     """Steady state of a point by shooting from a neighbour's converged orbit (a warm start).
 
     ``seed`` is the neighbour's row of :func:`run_points`' ``final`` (section
     state, phase, section phase theta). Newton's method on this point's
     Poincare map at the same section (:func:`tasks.kernel.shooting._shoot`, at
-    most ``WARM_NEWTON`` steps) starts from the seed; the fixed point is accepted
-    by the same test as the shooting of :func:`simulate_point` (residual below
-    ``section_rtol`` of the motion, not unstable), its period's statistics give
-    the fields (:func:`_finish`) and the creep rule applies
-    (:func:`_creep_limit`). Tried only where the held start of
-    :func:`simulate_point` would iterate: held start, beta > 0, strictly below
-    the motion bound (:func:`held_margin` below ``-HELD_MARGIN_RTOL beta``: at
-    or above it the held start is proved stuck for ever in its first cycle), no
-    resonant growth.
+    most ``WARM_NEWTON`` steps) starts from the seed and must reach a residual
+    of ``POLISH_RTOL`` of the motion (or ``event_tol``: :func:`_polish_rtol`; the
+    polish of :func:`polish_point`, so the fixed point does not depend on the
+    seed), not unstable; its period's
+    statistics give the fields (:func:`_finish`) and the creep rule applies
+    (:func:`_creep_limit`). Only a moving orbit is accepted (one that the creep
+    rule calls no motion is left to the held start, which decides how no motion
+    is reached). Tried only where the held start of :func:`simulate_point`
+    would iterate: held start, beta > 0, strictly below the motion bound
+    (:func:`held_margin` below ``-HELD_MARGIN_RTOL beta``: at or above it the
+    held start is proved stuck for ever in its first cycle), no resonant growth.
+
+    Why the label is the held start's (docs/theory.md 3, "One regime per
+    point"): the energy of the difference of two motions of a point never
+    increases, and stays constant only while both stick and both slide (the
+    same way) at the same times. So the held start's trajectory, whatever its
+    transient, ends with the stick and slip intervals of any periodic orbit of
+    the point: the regime, stops and stick fraction of the orbit found here.
 
     Returns ``(accepted, cycles)``; when not accepted, ``out`` and ``final``
     are left to :func:`simulate_point`. ``keep``, ``kept``: as for
     :func:`simulate_point`.
     """
-    section_rtol = settings[2]
     shooting = settings[5]
     ctx, work, X_held, _, ic_used = _context(r, beta, scene, settings)
     if beta == 0.0 or ic_used != IC_HELD or not shooting:
@@ -443,22 +467,80 @@ def warm_point(r, beta, scene, settings, out, final, seed, keep, kept):
     X0 = seed[: 2 * n].copy()
     mode0 = int(seed[2 * n])
     theta = seed[2 * n + 1]
-    static = _max_abs(np.linalg.solve(ctx[CTX_K], ctx[CTX_P]))
-    ref = max(_max_abs(X_held), static, _max_abs(X0), 1e-300)
     stats = np.zeros(N_STATS)
     kept[0] = 0
     ok, Xs, used = _shoot(
-        X0, mode0, stats, ctx, work, section_rtol, ref, WARM_NEWTON, theta, keep, kept
+        X0,
+        mode0,
+        stats,
+        ctx,
+        work,
+        _polish_rtol(settings),
+        _floor(ctx, X_held),
+        WARM_NEWTON,
+        theta,
+        keep,
+        kept,
     )
     if not ok:
         return False, used
     out[OUT_ASYMPTOTIC] = 0.0
+    _finish(out, stats, stats, 1, used, ic_used)
+    _creep_limit(out, creep_threshold(ctx, beta))
+    if not _seeds_next(out):  # no motion by the creep rule: the held start decides
+        kept[0] = 0
+        return False, used
     final[: 2 * n] = Xs
     final[2 * n] = start_phase(Xs, ctx[CTX_BETA], ctx, theta) if mode0 != 0 else 0
     final[2 * n + 1] = theta
-    _finish(out, stats, stats, 1, used, ic_used)
-    _creep_limit(out, creep_threshold(ctx, beta))
     return True, used
+
+
+@njit(cache=True)
+def polish_point(r, beta, scene, settings, out, final, keep, kept):
+    """Polish a converged period-1 motion to the fixed point of its Poincare map.
+
+    The search stops once the section repeats to ``section_rtol`` (1e-8 in
+    ``balanced``): the fixed point is that close, and where exactly depends on
+    where the search started. Newton's method from the converged section
+    (:func:`tasks.kernel.shooting._shoot`, at most ``POLISH_NEWTON`` steps, the
+    Jacobian and steps on the followed map, each step verified on a full
+    period) brings the residual to ``POLISH_RTOL`` of the motion (or to
+    ``event_tol``, to which the map itself is known: :func:`_polish_rtol`), so that the
+    fields of the orbit agree whatever seeded the search (to about
+    ``POLISH_RTOL`` over one minus the slowest Floquet multiplier). The fields
+    are then those of the polished period (:func:`_finish`, creep rule) and
+    its records are left in ``keep`` for the orbit check. Where the polish
+    does not settle (the chart changes in a step, the Jacobian is singular),
+    the point keeps its converged result. Returns the periods used.
+    """
+    ctx, work, X_held, _, _ = _context(r, beta, scene, settings)
+    n = X_held.shape[0] // 2
+    mode = int(final[2 * n])
+    theta = final[2 * n + 1]
+    stats = np.zeros(N_STATS)
+    ok, Xs, used = _shoot(
+        final[: 2 * n].copy(),
+        mode,
+        stats,
+        ctx,
+        work,
+        _polish_rtol(settings),
+        _floor(ctx, X_held),
+        POLISH_NEWTON,
+        theta,
+        keep,
+        kept,
+    )
+    cycles = out[OUT_CYCLES] + used
+    out[OUT_CYCLES] = cycles
+    if not ok:
+        return used
+    final[: 2 * n] = Xs
+    final[2 * n] = start_phase(Xs, ctx[CTX_BETA], ctx, theta) if mode != 0 else 0
+    _finish(out, stats, stats, 1, cycles, out[OUT_IC])
+    _creep_limit(out, creep_threshold(ctx, beta))
+    return used
 
 
 @njit(cache=True)
@@ -482,22 +564,34 @@ def run_points(r, beta, scene, settings):
 
 @njit(cache=True, nogil=True)
 def run_points_design(r, beta, scene, settings, samples):
-    """Classify every point ``(r[i], beta[i])``, and with ``samples > 0`` compute the
-    design quantities of its orbit.
+    """Classify every point ``(r[i], beta[i])`` from the held start (no seeds:
+    :func:`run_points_seeded`), and with ``samples > 0`` compute the design
+    quantities of its orbit. Returns ``(out, final, design)``."""
+    seeds = np.full((r.shape[0], 0), -1, dtype=np.int64)
+    return run_points_seeded(r, beta, scene, settings, samples, seeds)
 
-    With ``settings[12]`` (``warm``, :mod:`tasks.fidelity`) a point first tries a warm start
-    (:func:`warm_point`) from the orbit of the last point before it that
-    converged to a period-1 motion, if that point lies within ``WARM_STEP``
-    (relative) in beta and within ``WARM_PHASE`` in the phase of the fastest
-    free mode over one period (how far apart in r the two orbits are). A point
-    the warm start does not settle, or whose orbit then fails the orbit
-    invariant, is classified from the held start (:func:`simulate_point`)
-    exactly as without warm starts. Every
-    periodic steady state of a point has the same regime, stops and stick
-    fraction (docs/theory.md 3, "One regime per point"): the seed changes how
-    fast a point settles, not its label, whatever the order of the points. The
-    warm start's periods are counted in ``cycles``; ``initial_condition`` stays
-    the held start, the reference the steady state is the limit of.
+
+@njit(cache=True, nogil=True)
+def run_points_seeded(r, beta, scene, settings, samples, seeds):
+    """Classify every point ``(r[i], beta[i])`` in order, warm-started where
+    ``seeds`` says, and with ``samples > 0`` compute the design quantities of
+    its orbit.
+
+    With ``settings[12]`` (``warm``, :mod:`tasks.fidelity`), row ``i`` of
+    ``seeds`` lists earlier points (indices below ``i``, nearest first, -1
+    padding; :func:`tasks.seeds.warm_seeds`) whose orbit may seed point ``i``:
+    the first of them that converged to a moving period-1 orbit seeds a warm
+    start (:func:`warm_point`). A point the warm start does not settle, or
+    whose orbit then fails the orbit invariant, is classified from the held
+    start (:func:`simulate_point`) exactly as without warm starts, and its
+    period-1 motion is then polished (:func:`polish_point`) as the warm start's
+    is: every moving period-1 orbit is the fixed point of its map to
+    ``POLISH_RTOL``, so the fields do not depend on which point seeded which
+    (and the labels never do: :func:`warm_point`). The warm start's periods
+    are counted in ``cycles`` (the one field that depends on the seeds);
+    ``initial_condition`` stays the held start, the reference the steady
+    state is the limit of. Without ``warm`` the seeds are ignored and nothing
+    is polished.
 
     The design quantities (:func:`tasks.kernel.design.orbit_design_recorded`,
     ``samples`` per cycle at least) are computed from the records of the orbit
@@ -516,23 +610,22 @@ def run_points_design(r, beta, scene, settings, samples):
     warm = settings[12]
     keep = np.empty((REC_ROWS, REC_X + 2 * n))  # a shot's verified period, for the check
     kept = np.zeros(1, dtype=np.int64)
-    phase_rate = math.sqrt(scene[5][-1])  # the fastest sliding mode: Omega = sqrt(lambda) / r
-    seeded = False
-    seed_r = 0.0
-    seed_beta = 0.0
-    seed = np.empty(2 * n + 2)
+    seedable = np.zeros(r.shape[0], dtype=np.bool_)
     for i in range(r.shape[0]):
         accepted = False
         spent = 0
-        drift = TWO_PI * phase_rate * abs(1.0 / r[i] - 1.0 / seed_r) if seeded else np.inf
-        near = drift <= WARM_PHASE and abs(beta[i] - seed_beta) <= WARM_STEP * max(
-            beta[i], seed_beta
-        )
         rec = np.zeros((0, REC_X + 2 * n))
         nr = 0
-        if warm and seeded and near:
+        source = -1
+        if warm:
+            for c in range(seeds.shape[1]):
+                j = seeds[i, c]
+                if 0 <= j < i and seedable[j]:
+                    source = j
+                    break
+        if source >= 0:
             accepted, spent = warm_point(
-                r[i], beta[i], scene, settings, out[i], final[i], seed, keep, kept
+                r[i], beta[i], scene, settings, out[i], final[i], final[source], keep, kept
             )
             if accepted:
                 rec, nr = _check_orbit(
@@ -541,15 +634,13 @@ def run_points_design(r, beta, scene, settings, samples):
                 accepted = out[i, OUT_CONVERGED] == 1.0
         if not accepted:
             simulate_point(r[i], beta[i], scene, settings, out[i], final[i], keep, kept)
+            if warm and beta[i] > 0.0 and _seeds_next(out[i]):  # (beta = 0: closed form)
+                polish_point(r[i], beta[i], scene, settings, out[i], final[i], keep, kept)
             rec, nr = _check_orbit(r[i], beta[i], scene, settings, out[i], final[i], keep, kept[0])
             out[i, OUT_CYCLES] += spent
         if samples > 0:
             point_design(
                 r[i], beta[i], scene, settings, out[i], final[i], samples, design[i], rec, nr
             )
-        if warm and _seeds_next(out[i]):
-            seed[:] = final[i]
-            seed_r = r[i]
-            seed_beta = beta[i]
-            seeded = True
+        seedable[i] = warm and beta[i] > 0.0 and _seeds_next(out[i])
     return out, final, design
