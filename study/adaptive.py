@@ -109,6 +109,7 @@ class _Plane:
     sample: np.ndarray | None = None  # the verification sample (sorted)
     out: dict = field(default_factory=dict)  # its results
     outstanding: set = field(default_factory=set)  # keys handed out, not arrived
+    arrived: list = field(default_factory=list)  # (idx, arrays) not yet given to ``ref``
     hint_due: bool = False  # the closed-form hint is computed at the first result
     batches: int = 0
     reused: int = 0  # points answered from saved point lists
@@ -224,14 +225,32 @@ class AdaptivePlan(ScenePlan):
             label=contacts.COMBINED,
         )
 
-    def _list_key(self, pl: _Plane, idx: np.ndarray) -> str:
-        """Key of a point list: the plane, the length, a hash of the points' r and beta."""
+    def _list_key(self, tag: str, idx: np.ndarray) -> str:
+        """Key of a point list of the plane ``tag``: the length, a hash of the points'
+        r and beta."""
         r, beta = self._axes["r"], self._axes["beta"]
         i_r, i_b = np.unravel_index(idx, (r.size, beta.size))
-        h = hashlib.sha256(pl.tag.encode())
+        h = hashlib.sha256(tag.encode())
         h.update(np.ascontiguousarray(r[i_r]).tobytes())
         h.update(np.ascontiguousarray(beta[i_b]).tobytes())
-        return f"{pl.tag}-{idx.size}-{h.hexdigest()[:16]}"
+        return f"{tag}-{idx.size}-{h.hexdigest()[:16]}"
+
+    @staticmethod
+    def merge_group(unit: PointList) -> str:
+        """Point lists of one plane can be saved as one (:mod:`study.saving`)."""
+        return unit.key.rsplit("-", 2)[0]  # the plane's tag
+
+    def merge(
+        self, units: list[PointList], arrays: list[dict[str, np.ndarray]]
+    ) -> tuple[str, dict[str, np.ndarray]]:
+        """Point lists of one plane (their arrays with ``index``) as one point list
+        (sorted by index), and its key: a rerun reads it as any point list."""
+        index = np.concatenate([a["index"] for a in arrays])
+        order = np.argsort(index, kind="stable")
+        out = {k: np.concatenate([a[k] for a in arrays])[order] for k in self.point_fields()}
+        out["index"] = index[order]
+        out["seconds"] = np.float64(sum(float(a["seconds"]) for a in arrays))
+        return self._list_key(self.merge_group(units[0]), out["index"]), out
 
     @staticmethod
     def _list_length(key: str) -> int | None:
@@ -304,6 +323,11 @@ class AdaptivePlan(ScenePlan):
     def _replay(self, pl: _Plane) -> None:
         """Move the refinement's ready points to ``todo``, answering at once those a saved
         point list holds (their answers may make more points ready)."""
+        if pl.arrived:  # every point list arrived since the last look, in one call
+            idx = np.concatenate([i for i, _ in pl.arrived])
+            arrays = {k: np.concatenate([a[k] for _, a in pl.arrived]) for k in pl.arrived[0][1]}
+            pl.arrived = []
+            self._refinement(pl).accept(idx, arrays)
         while True:
             wave_open = self.barriers and (pl.outstanding or pl.todo.size)
             if pl.phase == "refine" and not wave_open:
@@ -332,7 +356,7 @@ class AdaptivePlan(ScenePlan):
             "r": r[i_r],
             "beta": beta[i_b],
         }
-        key = self._list_key(pl, idx)
+        key = self._list_key(pl.tag, idx)
         pl.outstanding.add(key)
         return PointList(self.spec.name, key, idx, task, pl.sweep, pl.phase)
 
@@ -348,7 +372,9 @@ class AdaptivePlan(ScenePlan):
         if unit.phase == "verify":
             self._put(pl, unit.idx, arrays)
             return
-        self._refinement(pl).accept(unit.idx, arrays)
+        # accepted at the next look for points (_replay): results that arrive together
+        # make one call of the refinement (the result does not depend on the grouping)
+        pl.arrived.append((unit.idx, {k: arrays[k] for k in self.point_fields()}))
         pl.batches += 1
         if self.verbose and time.monotonic() - pl.shown > PRINT_EVERY:
             pl.shown = time.monotonic()
@@ -401,7 +427,7 @@ class AdaptivePlan(ScenePlan):
             index = np.asarray(arrays["index"], dtype=np.int64)
             n = pl.ref.n_points
             inside = index.size and index.min() >= 0 and index.max() < n
-            if not (inside and self._list_key(pl, index) == key):
+            if not (inside and self._list_key(pl.tag, index) == key):
                 path = work.chunk_path(self.spec.name, key)
                 discard(path)
                 work.report(

@@ -28,8 +28,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TextIO
 
-from distributed.diagnostics.plugin import WorkerPlugin
-
 from study.chunks import ScenePlan, plan
 from study.connect import DEFAULT_SCHEDULER_TIMEOUT, call_within, check_timeout
 from study.connect import connect as connect_scheduler
@@ -69,25 +67,30 @@ class RunSummary:
     write_seconds: float = 0.0
 
 
-class IgnoreSigint(WorkerPlugin):
-    """Worker plugin: a local worker process ignores SIGINT.
+def ignore_sigint_plugin():
+    """A worker plugin: a local worker process ignores SIGINT.
 
     Ctrl-C in a terminal reaches every process of the foreground group, the
     LocalCluster's worker processes included; they would die printing
     tracebacks while the client is still cancelling. The client handles
     Ctrl-C and then stops its own cluster. Registered only on the LocalCluster
-    that :func:`connect` starts, never on a shared cluster.
+    that :func:`connect` starts, never on a shared cluster. (Made on demand:
+    ``distributed`` is imported only by runs that use it.)
     """
+    from distributed.diagnostics.plugin import WorkerPlugin
 
-    name = "study-ignore-sigint"
-    idempotent = True
+    class IgnoreSigint(WorkerPlugin):
+        name = "study-ignore-sigint"
+        idempotent = True
 
-    def setup(self, worker) -> None:
-        import signal
-        import threading
+        def setup(self, worker) -> None:
+            import signal
+            import threading
 
-        if threading.current_thread() is threading.main_thread():
-            signal.signal(signal.SIGINT, signal.SIG_IGN)
+            if threading.current_thread() is threading.main_thread():
+                signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+    return IgnoreSigint()
 
 
 def dashboard_note(client, local: bool) -> str:
@@ -120,14 +123,29 @@ def connect(
     """A Dask client: the one given, a running scheduler, or a new LocalCluster.
 
     The LocalCluster has one single-threaded worker process per core and
-    listens on 127.0.0.1 only; with ``in_process`` threads, one worker of that
-    many threads in this process instead (no process to start: for studies
-    whose planned compute is short, :func:`study.drive.local_threads`). With a running
-    scheduler, ``workers`` means: wait until that many workers are connected.
-    A client that is given is neither changed nor closed.
+    listens on 127.0.0.1 only; with ``in_process`` threads, a pool of that many
+    threads of this process instead, without Dask (:class:`study.threads.ThreadClient`:
+    no process to start, for studies whose planned compute is short,
+    :func:`study.drive.local_threads`). With a running scheduler, ``workers``
+    means: wait until that many workers are connected. A client that is given is
+    neither changed nor closed.
     """
     if client is not None:
         yield client
+        return
+    if in_process:
+        from study.threads import ThreadClient
+
+        pool = ThreadClient(in_process)
+        print(
+            "study: a small study: computing in this process (no worker processes to wait "
+            f"for), {in_process} thread{'s' if in_process > 1 else ''}",
+            file=stream,
+        )
+        try:
+            yield pool
+        finally:
+            pool.close()
         return
     from distributed import Client, LocalCluster
 
@@ -165,14 +183,12 @@ def connect(
                 ) from None
             raise
     else:
-        n = 1 if in_process else workers or default_workers()
+        n = workers or default_workers()
         cluster = start_deferring_sigint(  # Ctrl-C during the start: one line (study.watchdog)
             lambda: LocalCluster(
                 n_workers=n,
-                threads_per_worker=max(1, in_process),
-                processes=not in_process,
-                # tcp:// for a cluster in this process too: inproc:// opens a port on
-                # every interface beside it
+                threads_per_worker=1,
+                processes=True,
                 protocol="tcp://",
                 host="127.0.0.1",
                 dashboard_address="127.0.0.1:0",
@@ -183,14 +199,9 @@ def connect(
         )
         try:
             client = Client(cluster)
-            client.register_plugin(IgnoreSigint())
-            what = (
-                "a small study: computing in this process (no worker processes to wait "
-                f"for), {in_process} thread{'s' if in_process > 1 else ''}"
-                if in_process
-                else f"local cluster with {n} workers"
-            )
-            print(f"study: {what}, {dashboard_note(client, local=True)}", file=stream)
+            client.register_plugin(ignore_sigint_plugin())
+            note = dashboard_note(client, local=True)
+            print(f"study: local cluster with {n} workers, {note}", file=stream)
         except BaseException as exc:
             if client is not None:
                 client.close()
@@ -426,14 +437,16 @@ def _compute(plans, work, where, retries, progress, timeouts, done, stream):
     with quiet, connect(client, scheduler, scheduler_file, workers, stream, **kw) as c:
         bar.start()
         t1 = time.perf_counter()
-        dog = Watchdog(
-            c,
-            worker_timeout,
-            local=local,
-            where=str(work.path),
-            stream=stream,
-            scheduler_timeout=scheduler_timeout,
-        )
+        dog = None  # threads of this process: no scheduler or worker to lose
+        if not in_process:
+            dog = Watchdog(
+                c,
+                worker_timeout,
+                local=local,
+                where=str(work.path),
+                stream=stream,
+                scheduler_timeout=scheduler_timeout,
+            )
         drive(c, plans, work, bar, retries, done, watchdog=dog)
         wall = time.perf_counter() - t1
     bar.close()
