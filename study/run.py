@@ -22,6 +22,7 @@ from __future__ import annotations
 import logging
 import os
 import sys
+import threading
 import time
 from contextlib import contextmanager, nullcontext, suppress
 from dataclasses import dataclass
@@ -426,6 +427,7 @@ def _compute(plans, work, where, retries, progress, timeouts, done, stream):
     )
     bar.eta_seconds = bar.tracker.eta
     in_process = local_threads(plans, work, default_workers()) if local and workers is None else 0
+    threading.Thread(target=_import_writer, name="study-import", daemon=True).start()
     if local:
         compile_once(stream)  # before the local workers start: they load it from cache
     quiet = quiet_dask_logs() if client is None else nullcontext()
@@ -451,6 +453,16 @@ def _compute(plans, work, where, retries, progress, timeouts, done, stream):
         wall = time.perf_counter() - t1
     bar.close()
     return done.compute_seconds, wall
+
+
+def _import_writer() -> None:
+    """Import what assembling the result needs (xarray, dask.array, netCDF4: about a
+    second; scipy.special for an adaptive map's verification bound) while the study
+    computes, instead of after it."""
+    with suppress(Exception):  # the imports where they are used report any error
+        import scipy.special  # noqa: F401
+
+        import study.netcdf  # noqa: F401
 
 
 def _assemble(study: Study, plans: list[ScenePlan], work, output, command: str | None):
