@@ -216,7 +216,8 @@ def cmd_plan(args) -> int:
     )
     total_s = 0.0
     n_tasks = 0
-    for p in plan(study):
+    plans = plan(study)
+    for p in plans:
         n = p.spec.n_points
         est = p.est_seconds
         if args.calibrate and p.kind == "grid":
@@ -234,11 +235,26 @@ def cmd_plan(args) -> int:
             f"{n / p.n_chunks:>10.0f}{est / p.n_chunks:>12.2f}{est:>12.1f}"
         )
     from study.cost import wall_seconds
+    from study.drive import local_threads
+    from study.memory import MemoryWork
 
-    wall = wall_seconds(total_s, workers)  # local cluster start-up included
+    # where `study run` would compute it (without --workers: threads of its own
+    # process for a short study, study.drive.local_threads; else a local cluster)
+    threads = 0
+    if not args.workers:
+        work = MemoryWork()
+        for p in plans:
+            p.verbose = False
+            p.prepare(work)
+        threads = local_threads(plans, work, workers)
+    wall = wall_seconds(total_s, threads or workers, in_process=bool(threads))
+    where = (
+        f"in {threads} thread{'s' if threads > 1 else ''} of the run's process (a small study)"
+        if threads
+        else f"on {workers} workers"
+    )
     print(
-        f"total: {n_tasks:,} tasks, about {total_s:,.0f} CPU s; "
-        f"about {wall:,.0f} s on {workers} workers"
+        f"total: {n_tasks:,} tasks, about {total_s:,.0f} CPU s; about {wall:,.0f} s {where}"
         + ("" if args.calibrate else " (cost model; --calibrate to measure)")
     )
     return 0
