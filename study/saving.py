@@ -3,21 +3,22 @@
 :func:`study.drive.drive` hands every arrived result to a :class:`Saver`; one
 background thread writes them (:meth:`study.store.WorkDir.save`: atomic,
 flushed to disk, verified on reuse) while the client goes on refining and
-submitting. The writer takes every result queued by then at once: results of
-units that a plan can merge (the point lists of one adaptive plane,
-:meth:`study.adaptive.AdaptivePlan.merge`) become one file, so a slow disk
-makes fewer, larger files instead of a longer queue (the Fig. 4 example: a
-handful of files, not one per point list; each file costs a flush to disk).
+submitting. The writer gathers the results arriving within
+:data:`GATHER_SECONDS` of the first one it waits for (and all queued behind a
+slow disk): results of units that a plan can merge (the point lists of one
+adaptive plane, :meth:`study.adaptive.AdaptivePlan.merge`) become one file
+(the Fig. 4 example: about ten files instead of one per point list, each
+flushed to disk with fsync and deleted at the end).
 
 What an interruption loses:
 
-* Ctrl-C (SIGINT), a unit that failed, a lost scheduler: nothing. The run
-  writes every queued result before it stops (:meth:`Saver.close`).
-* ``kill -9`` of the client, or a crash of the machine: the results that
-  arrived since the writer started its current file (at most the write time of
-  one file, well under a second on a local disk; the progress line counts
-  arrived results). They are computed again by the rerun, which gives the
-  identical result (a plan's result does not depend on which units were saved).
+* Ctrl-C (SIGINT), SIGTERM, a unit that failed, a lost scheduler: nothing. The
+  run writes every queued result before it stops (:meth:`Saver.close`).
+* ``kill -9`` of the client: the results that arrived in the last
+  :data:`GATHER_SECONDS` plus the write time of one file (well under a second
+  on a local disk); a power cut, also the renames the disk had not recorded.
+  They are computed again by the rerun, which gives the identical result (a
+  plan's result does not depend on which units were saved).
 
 A file is either complete under its final name or absent (a temporary file
 left by a killed writer is deleted by the next run), and every file is checked
@@ -28,9 +29,13 @@ from __future__ import annotations
 
 import queue
 import threading
+import time
 
 #: Seconds between two looks for Ctrl-C while the client waits for the writer.
 POLL = 0.2
+#: Seconds the writer gathers arriving results before it writes them: results of
+#: units a plan can merge arriving within it make one file.
+GATHER_SECONDS = 0.5
 
 
 class Saver:
@@ -77,14 +82,15 @@ class Saver:
         stop = False
         while not stop:
             items = [self._queue.get()]
-            while True:  # every result queued by now
+            until = time.monotonic() + GATHER_SECONDS
+            while items[-1] is not None:  # every result arriving meanwhile
                 try:
-                    items.append(self._queue.get_nowait())
+                    items.append(self._queue.get(timeout=max(0.0, until - time.monotonic())))
                 except queue.Empty:
                     break
-            if None in items:
+            if items[-1] is None:  # close(): write what is queued, then stop
                 stop = True
-                items = [i for i in items if i is not None]
+                items.pop()
             if self.error is None:
                 try:
                     self._write(items)
