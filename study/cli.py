@@ -21,6 +21,7 @@ resume. Timeouts and limits: ``docs/limits.md``.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import shlex
 import signal
@@ -338,6 +339,31 @@ def cmd_examples(args) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run one command; ``argv`` None: the command line of this process (the ``study``
+    command, ``python -m study``), which then ends at once (:func:`_end_process`)."""
+    code = _command(argv)
+    if argv is None:
+        _end_process(code)
+    return code
+
+
+def _end_process(code: int) -> None:
+    """End the process with ``code`` without the interpreter's teardown of the libraries
+    it imported (numba, xarray, dask: 0.3-0.6 s after the command is done).
+
+    Only when Dask's ``distributed`` was not imported (its clusters clean up at exit):
+    every file is closed, every result saved (:mod:`study.saving`), the threads of a
+    small study idle or, after Ctrl-C, stopped with the process.
+    """
+    if "distributed" in sys.modules:
+        return
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(OSError, ValueError):  # a closed pipe, a closed stream
+            stream.flush()
+    os._exit(code)
+
+
+def _command(argv: list[str] | None) -> int:
     args = build_parser().parse_args(argv)
     handler = {
         "run": cmd_run,
