@@ -13,7 +13,8 @@ interruption loads every saved point list of a plane, answers the refinement's
 requests from them and computes only the missing points. When a plane (one
 combination of the swept ratios) is complete, its assembled fields are saved in
 the work folder too (:data:`PLANES_AT_ONCE` planes in client memory at a time)
-and the netCDF writer (:mod:`study.netcdf`) copies them into the result. Saved
+and the netCDF writer (:mod:`study.netcdf`) copies them into the result (the
+last plane finished by the run from memory, the others from their files). Saved
 planes and point lists (their exact length, from the key) are verified before
 any computing (:meth:`AdaptivePlan.prepare`), and a point list's indices
 against its key when its plane starts: a damaged one is discarded, named and
@@ -469,6 +470,7 @@ class AdaptivePlan(ScenePlan):
         fields["verify_sampled"] = np.int64(summary.sampled)
         fields["verify_agree"] = np.int64(summary.agree)
         work.save(self.spec.name, self.plane_key(pl.sweep, self._axes), fields)
+        self._last = (pl.sweep, fields)  # the writer reads the last plane from here
         self.finished_points += ref.n_points
         del self._active[pl.sweep]
 
@@ -489,8 +491,14 @@ class AdaptivePlan(ScenePlan):
         """
         axes = self.axes()
         self._stats = []
+        last = getattr(self, "_last", None)  # saved by this run: already in memory
+        self._last = None
         for sweep in self.planes():
-            arrays = work.load(self.spec.name, self.plane_key(sweep, axes), self.plane_expected())
+            if last is not None and last[0] == sweep:
+                arrays = last[1]
+            else:
+                key = self.plane_key(sweep, axes)
+                arrays = work.load(self.spec.name, key, self.plane_expected())
             for name in self.variables():
                 extra = (slice(None),) if self.trailing(name) else ()
                 yield name, (*sweep, *extra, slice(None), slice(None)), np.asarray(arrays[name]).T

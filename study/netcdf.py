@@ -294,7 +294,13 @@ def scene_dataset(plan: ScenePlan, study: Study) -> tuple[xr.Dataset, dict[str, 
         if math.prod(vshape) <= _BLOCK:  # small: numpy (a dask graph costs more than it saves)
             fill = np.full(vshape, _fill(dt), dtype=dt)
         else:
-            fill = da.full(vshape, _fill(dt), dtype=dt, chunks=_fill_chunks_shape(vshape, grid))
+            fill = da.full(  # never computed: named here, not hashed by dask
+                vshape,
+                _fill(dt),
+                dtype=dt,
+                chunks=_fill_chunks_shape(vshape, grid),
+                name=f"study-fill-{spec.name}-{name}",
+            )
         of_contacts = multi and name in contacts.MULTI_DTYPES
         vattrs = contacts.attrs(name, spec.structure.n_contacts) if of_contacts else _attrs(name)
         data_vars[name] = xr.Variable(vdims, fill, vattrs)
