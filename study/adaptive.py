@@ -112,6 +112,7 @@ class _Plane:
     outstanding: set = field(default_factory=set)  # keys handed out, not arrived
     arrived: list = field(default_factory=list)  # (idx, arrays) not yet given to ``ref``
     hint_due: bool = False  # the closed-form hint is computed at the first result
+    inferred: bool = False  # the inferred points are filled (during the verification)
     batches: int = 0
     reused: int = 0  # points answered from saved point lists
     computed: int = 0
@@ -305,6 +306,11 @@ class AdaptivePlan(ScenePlan):
                 idx, pl.todo = pl.todo[:size], pl.todo[size:]
                 return self._unit(pl, np.sort(idx))
             if pl.todo.size or pl.outstanding:
+                if pl.phase == "verify" and not pl.todo.size and not pl.inferred:
+                    # the inferred points' fields (accept_verification compares them) are
+                    # filled while the sample computes, not after: refinement is done
+                    pl.ref._fill_inferred()
+                    pl.inferred = True
                 return WAIT
             if pl.phase == "refine":
                 self._verify(pl)
