@@ -75,9 +75,9 @@ MULTI_MODE_SLOPE = 0.057
 STARTUP_SECONDS = 4.5
 #: Wall seconds before and after the compute of a small study computed in threads
 #: of the run's own process (:func:`study.drive.local_threads`): imports, loading
-#: the compiled kernel, writing the result (``bench_example.py``: about 1.5 s for
-#: the Fig. 4 example).
-IN_PROCESS_STARTUP_SECONDS = 1.5
+#: the compiled kernel, writing the result (``bench_example.py``, the Fig. 4
+#: example: 0.35-0.75 s before, 0.5 s after).
+IN_PROCESS_STARTUP_SECONDS = 1.0
 #: Scheduling overhead of tasks of about ``task_seconds`` (bench_scheduling.py: 2-5 %).
 SCHEDULING_OVERHEAD = 0.05
 #: Shortest task the sizing aims at, in seconds: below ~0.1 s the fixed cost of
