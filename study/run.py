@@ -456,13 +456,18 @@ def _compute(plans, work, where, retries, progress, timeouts, done, stream):
 
 
 def _import_writer() -> None:
-    """Import what assembling the result needs (xarray, dask.array, netCDF4: about a
-    second; scipy.special for an adaptive map's verification bound) while the study
+    """Import what assembling the result needs (xarray, netCDF4, and dask.array, which
+    xarray imports at its first variable when dask is installed: about a second;
+    scipy.special for an adaptive map's verification bound) while the study
     computes, instead of after it."""
     with suppress(Exception):  # the imports where they are used report any error
+        import numpy as np
         import scipy.special  # noqa: F401
+        import xarray as xr
 
         import study.netcdf  # noqa: F401
+
+        xr.Variable("x", np.zeros(1))  # xarray's look for dask arrays imports dask
 
 
 def _assemble(study: Study, plans: list[ScenePlan], work, output, command: str | None):
