@@ -427,7 +427,8 @@ def _compute(plans, work, where, retries, progress, timeouts, done, stream):
     )
     bar.eta_seconds = bar.tracker.eta
     in_process = local_threads(plans, work, default_workers()) if local and workers is None else 0
-    threading.Thread(target=_import_writer, name="study-import", daemon=True).start()
+    if in_process:  # (with Dask the client imports distributed meanwhile: not both)
+        threading.Thread(target=_import_writer, name="study-import", daemon=True).start()
     if local:
         compile_once(stream)  # before the local workers start: they load it from cache
     quiet = quiet_dask_logs() if client is None else nullcontext()
@@ -457,12 +458,11 @@ def _compute(plans, work, where, retries, progress, timeouts, done, stream):
 
 def _import_writer() -> None:
     """Import what assembling the result needs (xarray, netCDF4, and dask.array, which
-    xarray imports at its first variable when dask is installed: about a second;
-    scipy.special for an adaptive map's verification bound) while the study
-    computes, instead of after it."""
+    xarray imports at its first variable when dask is installed: about a second)
+    while a study computes in threads of this process, instead of after it. None of
+    these is imported by the client's thread meanwhile."""
     with suppress(Exception):  # the imports where they are used report any error
         import numpy as np
-        import scipy.special  # noqa: F401
         import xarray as xr
 
         import study.netcdf  # noqa: F401
