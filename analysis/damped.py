@@ -34,7 +34,6 @@ import math
 
 import numpy as np
 from scipy.linalg import expm, solve
-from scipy.optimize import minimize_scalar
 
 from tasks.scene import Scene
 
@@ -112,6 +111,8 @@ def half_period_terms(scene: Scene, r: float) -> dict[str, float]:
     lo, hi = tt[max(k - 1, 0)], tt[min(k + 1, tt.size - 1)]
     best = float(ratio[k])
     if hi > lo:
+        from scipy.optimize import minimize_scalar  # here: scipy.optimize costs 0.5 s to import
+
         res = minimize_scalar(
             lambda t: -float(h(t) / math.sin(t)),
             bounds=(lo, hi),

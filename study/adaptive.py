@@ -13,7 +13,8 @@ interruption loads every saved point list of a plane, answers the refinement's
 requests from them and computes only the missing points. When a plane (one
 combination of the swept ratios) is complete, its assembled fields are saved in
 the work folder too (:data:`PLANES_AT_ONCE` planes in client memory at a time)
-and the netCDF writer (:mod:`study.netcdf`) copies them into the result. Saved
+and the netCDF writer (:mod:`study.netcdf`) copies them into the result (the
+last plane finished by the run from memory, the others from their files). Saved
 planes and point lists (their exact length, from the key) are verified before
 any computing (:meth:`AdaptivePlan.prepare`), and a point list's indices
 against its key when its plane starts: a damaged one is discarded, named and
@@ -109,7 +110,9 @@ class _Plane:
     sample: np.ndarray | None = None  # the verification sample (sorted)
     out: dict = field(default_factory=dict)  # its results
     outstanding: set = field(default_factory=set)  # keys handed out, not arrived
+    arrived: list = field(default_factory=list)  # (idx, arrays) not yet given to ``ref``
     hint_due: bool = False  # the closed-form hint is computed at the first result
+    inferred: bool = False  # the inferred points are filled (during the verification)
     batches: int = 0
     reused: int = 0  # points answered from saved point lists
     computed: int = 0
@@ -224,14 +227,32 @@ class AdaptivePlan(ScenePlan):
             label=contacts.COMBINED,
         )
 
-    def _list_key(self, pl: _Plane, idx: np.ndarray) -> str:
-        """Key of a point list: the plane, the length, a hash of the points' r and beta."""
+    def _list_key(self, tag: str, idx: np.ndarray) -> str:
+        """Key of a point list of the plane ``tag``: the length, a hash of the points'
+        r and beta."""
         r, beta = self._axes["r"], self._axes["beta"]
         i_r, i_b = np.unravel_index(idx, (r.size, beta.size))
-        h = hashlib.sha256(pl.tag.encode())
+        h = hashlib.sha256(tag.encode())
         h.update(np.ascontiguousarray(r[i_r]).tobytes())
         h.update(np.ascontiguousarray(beta[i_b]).tobytes())
-        return f"{pl.tag}-{idx.size}-{h.hexdigest()[:16]}"
+        return f"{tag}-{idx.size}-{h.hexdigest()[:16]}"
+
+    @staticmethod
+    def merge_group(unit: PointList) -> str:
+        """Point lists of one plane can be saved as one (:mod:`study.saving`)."""
+        return unit.key.rsplit("-", 2)[0]  # the plane's tag
+
+    def merge(
+        self, units: list[PointList], arrays: list[dict[str, np.ndarray]]
+    ) -> tuple[str, dict[str, np.ndarray]]:
+        """Point lists of one plane (their arrays with ``index``) as one point list
+        (sorted by index), and its key: a rerun reads it as any point list."""
+        index = np.concatenate([a["index"] for a in arrays])
+        order = np.argsort(index, kind="stable")
+        out = {k: np.concatenate([a[k] for a in arrays])[order] for k in self.point_fields()}
+        out["index"] = index[order]
+        out["seconds"] = np.float64(sum(float(a["seconds"]) for a in arrays))
+        return self._list_key(self.merge_group(units[0]), out["index"]), out
 
     @staticmethod
     def _list_length(key: str) -> int | None:
@@ -285,6 +306,11 @@ class AdaptivePlan(ScenePlan):
                 idx, pl.todo = pl.todo[:size], pl.todo[size:]
                 return self._unit(pl, np.sort(idx))
             if pl.todo.size or pl.outstanding:
+                if pl.phase == "verify" and not pl.todo.size and not pl.inferred:
+                    # the inferred points' fields (accept_verification compares them) are
+                    # filled while the sample computes, not after: refinement is done
+                    pl.ref._fill_inferred()
+                    pl.inferred = True
                 return WAIT
             if pl.phase == "refine":
                 self._verify(pl)
@@ -304,6 +330,11 @@ class AdaptivePlan(ScenePlan):
     def _replay(self, pl: _Plane) -> None:
         """Move the refinement's ready points to ``todo``, answering at once those a saved
         point list holds (their answers may make more points ready)."""
+        if pl.arrived:  # every point list arrived since the last look, in one call
+            idx = np.concatenate([i for i, _ in pl.arrived])
+            arrays = {k: np.concatenate([a[k] for _, a in pl.arrived]) for k in pl.arrived[0][1]}
+            pl.arrived = []
+            self._refinement(pl).accept(idx, arrays)
         while True:
             wave_open = self.barriers and (pl.outstanding or pl.todo.size)
             if pl.phase == "refine" and not wave_open:
@@ -332,7 +363,7 @@ class AdaptivePlan(ScenePlan):
             "r": r[i_r],
             "beta": beta[i_b],
         }
-        key = self._list_key(pl, idx)
+        key = self._list_key(pl.tag, idx)
         pl.outstanding.add(key)
         return PointList(self.spec.name, key, idx, task, pl.sweep, pl.phase)
 
@@ -348,7 +379,9 @@ class AdaptivePlan(ScenePlan):
         if unit.phase == "verify":
             self._put(pl, unit.idx, arrays)
             return
-        self._refinement(pl).accept(unit.idx, arrays)
+        # accepted at the next look for points (_replay): results that arrive together
+        # make one call of the refinement (the result does not depend on the grouping)
+        pl.arrived.append((unit.idx, {k: arrays[k] for k in self.point_fields()}))
         pl.batches += 1
         if self.verbose and time.monotonic() - pl.shown > PRINT_EVERY:
             pl.shown = time.monotonic()
@@ -401,7 +434,7 @@ class AdaptivePlan(ScenePlan):
             index = np.asarray(arrays["index"], dtype=np.int64)
             n = pl.ref.n_points
             inside = index.size and index.min() >= 0 and index.max() < n
-            if not (inside and self._list_key(pl, index) == key):
+            if not (inside and self._list_key(pl.tag, index) == key):
                 path = work.chunk_path(self.spec.name, key)
                 discard(path)
                 work.report(
@@ -443,6 +476,7 @@ class AdaptivePlan(ScenePlan):
         fields["verify_sampled"] = np.int64(summary.sampled)
         fields["verify_agree"] = np.int64(summary.agree)
         work.save(self.spec.name, self.plane_key(pl.sweep, self._axes), fields)
+        self._last = (pl.sweep, fields)  # the writer reads the last plane from here
         self.finished_points += ref.n_points
         del self._active[pl.sweep]
 
@@ -463,8 +497,14 @@ class AdaptivePlan(ScenePlan):
         """
         axes = self.axes()
         self._stats = []
+        last = getattr(self, "_last", None)  # saved by this run: already in memory
+        self._last = None
         for sweep in self.planes():
-            arrays = work.load(self.spec.name, self.plane_key(sweep, axes), self.plane_expected())
+            if last is not None and last[0] == sweep:
+                arrays = last[1]
+            else:
+                key = self.plane_key(sweep, axes)
+                arrays = work.load(self.spec.name, key, self.plane_expected())
             for name in self.variables():
                 extra = (slice(None),) if self.trailing(name) else ()
                 yield name, (*sweep, *extra, slice(None), slice(None)), np.asarray(arrays[name]).T

@@ -73,6 +73,11 @@ MULTI_MODE_SLOPE = 0.057
 #: Wall seconds to start a local cluster of single-threaded workers and load the
 #: compiled kernels in them (``bench_plan.py --startup``: 4.5-4.6 s, 2 workers).
 STARTUP_SECONDS = 4.5
+#: Wall seconds before and after the compute of a small study computed in threads
+#: of the run's own process (:func:`study.drive.local_threads`): imports, loading
+#: the compiled kernel, writing the result (``bench_example.py``, the Fig. 4
+#: example: 0.35-0.75 s before, 0.5 s after).
+IN_PROCESS_STARTUP_SECONDS = 1.0
 #: Scheduling overhead of tasks of about ``task_seconds`` (bench_scheduling.py: 2-5 %).
 SCHEDULING_OVERHEAD = 0.05
 #: Shortest task the sizing aims at, in seconds: below ~0.1 s the fixed cost of
@@ -129,10 +134,16 @@ def seconds_per_point(dof: int, fidelity: str, factor: float = 1.0) -> float:
     return BASE_SECONDS[fidelity] * (1.0 + DOF_SLOPE * (dof - 1)) * factor
 
 
-def wall_seconds(cpu_seconds: float, workers: int, local: bool = True) -> float:
-    """Estimated wall seconds of a run: start-up (local cluster), then the CPU seconds
-    shared by ``workers`` with the scheduling overhead."""
-    startup = STARTUP_SECONDS if local else 0.0
+def wall_seconds(
+    cpu_seconds: float, workers: int, local: bool = True, in_process: bool = False
+) -> float:
+    """Estimated wall seconds of a run: start-up (a local cluster's, or the imports of
+    a run computed in ``workers`` threads of its own process, ``in_process``), then
+    the CPU seconds shared by ``workers`` with the scheduling overhead."""
+    if in_process:
+        startup = IN_PROCESS_STARTUP_SECONDS
+    else:
+        startup = STARTUP_SECONDS if local else 0.0
     return startup + cpu_seconds / max(1, workers) * (1.0 + SCHEDULING_OVERHEAD)
 
 

@@ -5,16 +5,20 @@ Every plan (:mod:`study.chunks`) hands out its units of work through
 units in flight (a few per worker thread, resized as workers come and go),
 refilled from ``as_completed``, so neither the client nor the scheduler ever
 holds the whole study. Workers return numpy arrays and never write files; the
-client saves each result atomically in the work folder (:mod:`study.store`),
-once, with what its unit adds (``saved_with``: the indices of an adaptive point
-list), before handing it to its plan (:meth:`~study.chunks.ScenePlan.accept`), which
-may then have more units to give (new points of an adaptive plane). A
+client queues each result for saving in the work folder (:mod:`study.saving`: a
+background writer, atomic files of :mod:`study.store`), once, with what its unit
+adds (``saved_with``: the indices of an adaptive point list), and hands it to its
+plan (:meth:`~study.chunks.ScenePlan.accept`), which may then have more units to
+give (new points of an adaptive plane). Whatever stops the loop (Ctrl-C, a
+failed unit), every arrived result is written before the run ends. Threads of
+this process compute small studies without Dask (:mod:`study.threads`). A
 killed worker costs only the tasks it was running or holding, which the
 scheduler reruns elsewhere; tasks that raise are retried (``retries``).
 """
 
 from __future__ import annotations
 
+import sys
 import time
 from concurrent.futures import CancelledError
 from contextlib import suppress
@@ -25,6 +29,8 @@ from study.connect import call_within
 from study.errors import StudyFailed
 from study.plans import WAIT, ScenePlan
 from study.progress import Progress
+from study.saving import Saver
+from study.store import WorkDir
 from study.watchdog import ASK_TIMEOUT, Watchdog, watched_batches, watched_gather
 
 #: Units kept in flight per worker thread (at least ``MIN_WINDOW`` in all).
@@ -70,14 +76,15 @@ class Driven:
 
 
 def _failure(unit, exc: BaseException, retries: int, where: str) -> StudyFailed:
-    from distributed import KilledWorker
-    from distributed.comm.core import CommClosedError
-
+    dask = "distributed" in sys.modules  # else threads of this process (study.threads)
+    if dask:
+        from distributed import KilledWorker
+        from distributed.comm.core import CommClosedError
     if isinstance(exc, CancelledError):
         why = "was cancelled by the scheduler (restarted, or the connection to it was lost)"
-    elif isinstance(exc, CommClosedError | ConnectionError):
+    elif dask and isinstance(exc, CommClosedError | ConnectionError):
         why = "could not be fetched: the connection to the scheduler was lost"
-    elif isinstance(exc, KilledWorker):
+    elif dask and isinstance(exc, KilledWorker):
         why = f"killed every worker that ran it: {exc}"
     else:
         why = f"failed after {retries} retries: {type(exc).__name__}: {exc}"
@@ -92,7 +99,10 @@ class _Window:
     """Units in flight, the plans still handing out units, and the progress."""
 
     def __init__(self, client, plans, work, bar: Progress, retries: int, done: Driven):
-        from distributed import as_completed
+        if hasattr(client, "as_completed"):  # study.threads.ThreadClient: no Dask
+            as_completed = client.as_completed
+        else:
+            from distributed import as_completed
 
         self.client, self.work, self.bar, self.retries, self.done = (
             client,
@@ -109,6 +119,7 @@ class _Window:
         self.next_look = 0.0
         self.shown = sum(p.finished_points for p in plans)
         self.again: set[str] = set()  # units submitted a second time after a cancel
+        self.saver = Saver(work, done, background=isinstance(work, WorkDir))
 
     def _resize(self) -> None:
         now = time.monotonic()
@@ -158,12 +169,11 @@ class _Window:
             self.shown = total
 
     def arrived(self, fut, arrays) -> None:
-        """Save one result, hand it to its plan, count it."""
+        """Queue one result for saving (:mod:`study.saving`), hand it to its plan, count it."""
         _, p, unit = self.inflight.pop(fut.key)
         extra = getattr(unit, "saved_with", None)  # e.g. an adaptive point list's indices
-        self.work.save(unit.scene, unit.key, arrays if extra is None else arrays | extra)
+        self.saver.put(p, unit, arrays if extra is None else arrays | extra)
         fut.release()
-        self.done.saved += 1
         seconds = float(arrays["seconds"])
         self.done.compute_seconds += seconds
         before = p.finished_points
@@ -205,6 +215,23 @@ def drive(
     """
     win = _Window(client, plans, work, bar, retries, done)
     try:
+        _drive(win, client, watchdog)
+    except BaseException:  # every arrived result is written, whatever stopped the loop;
+        with suppress(Exception):  # the loop's own exception is the one to report
+            win.saver.close()
+        raise
+    win.saver.close()
+    if win.inflight or win.active:  # as_completed ended with work unaccounted for
+        p = (win.active or [None])[0]
+        unit = next(iter(win.inflight.values()))[2] if win.inflight else None
+        what = f"chunk {unit.key}" if unit else "a unit"
+        raise StudyFailed(f"{what} of scene {unit.scene if unit else p.spec.name} never completed")
+    return done
+
+
+def _drive(win: _Window, client, watchdog: Watchdog | None) -> None:
+    """The loop: submit, wait for a batch of results, hand them over, submit more."""
+    try:
         win.fill()
         for batch in watched_batches(win.futures, watchdog):
             try:  # one round trip for the whole batch
@@ -221,9 +248,3 @@ def drive(
         with suppress(TimeoutError):  # bounded: the scheduler may be the one that went silent
             call_within(ASK_TIMEOUT, client.cancel, [f for f, _, _ in win.inflight.values()])
         raise
-    if win.inflight or win.active:  # as_completed ended with work unaccounted for
-        p = (win.active or [None])[0]
-        unit = next(iter(win.inflight.values()))[2] if win.inflight else None
-        what = f"chunk {unit.key}" if unit else "a unit"
-        raise StudyFailed(f"{what} of scene {unit.scene if unit else p.spec.name} never completed")
-    return done

@@ -14,8 +14,8 @@ groups named by scene (``xr.open_datatree``).
 Every scene kind is written the same way, through its plan (:mod:`study.chunks`:
 layout, coordinates, and the stored units as blocks of its variables). Memory
 stays flat in the number of points and of scenes: each scene's group is first
-written with lazily generated fill values (dask, synchronous scheduler, large
-blocks), one scene at a time (``mode="a"``), then every unit is read from the
+defined with xarray's CF encoding from placeholders without values (a read-only
+view of one fill value), one scene at a time, then every unit is read from the
 work folder and written into its block with netCDF4, one unit at a time.
 Everything goes to a temporary file that replaces the output only when
 complete.
@@ -31,7 +31,6 @@ from datetime import UTC, datetime
 from importlib import metadata
 from pathlib import Path
 
-import dask.array as da
 import netCDF4
 import numpy as np
 import xarray as xr
@@ -50,7 +49,6 @@ from tasks.result import COORD_ATTRS, FIELDS, MASS_FIELDS, field_attrs
 
 #: Closed-form methods stored for every scene (``analysis.boundaries``).
 BOUNDARY_METHODS = ("paper", "exact")
-_BLOCK = 1 << 18  # elements per block of the lazily written fill values
 _BOUNDARY_BLOCK = 256  # r values per call of analysis.boundaries (bounded memory)
 #: Elements per netCDF (HDF5) chunk of a per-point variable: small enough that
 #: the bounded chunk cache below holds every chunk being filled, whatever the
@@ -197,21 +195,6 @@ def _nc_chunksizes(shape: tuple[int, ...], grid: bool = False) -> tuple[int, ...
     return (*([1] * (len(shape) - 2)), rows, cols)
 
 
-def _fill_chunks_shape(shape: tuple[int, ...], grid: bool = False) -> tuple[int, ...]:
-    """Blocks of at most ~_BLOCK elements along the last two dims (the rest one by one),
-    made of whole netCDF chunks."""
-    nc = _nc_chunksizes(shape, grid)
-    if len(shape) == 1:
-        return (max(nc[0], _BLOCK // nc[0] * nc[0]),)
-    if grid:
-        cols = max(1, min(shape[-1], _BLOCK // max(1, shape[-2])))
-        cols = max(nc[-1], cols // nc[-1] * nc[-1])
-        return (*([1] * (len(shape) - 2)), shape[-2], cols)
-    rows = max(1, min(shape[-2], _BLOCK // max(1, shape[-1])))
-    rows = max(nc[-2], rows // nc[-2] * nc[-2])
-    return (*([1] * (len(shape) - 2)), rows, shape[-1])
-
-
 #: CF flags of the coded trace variables.
 TRACE_FLAGS = {
     "trace_monotone": {
@@ -291,10 +274,7 @@ def scene_dataset(plan: ScenePlan, study: Study) -> tuple[xr.Dataset, dict[str, 
             enc["_FillValue"] = None
         if name in ("regime", "regime_rest"):
             enc["dtype"] = "int8"
-        if math.prod(vshape) <= _BLOCK:  # small: numpy (a dask graph costs more than it saves)
-            fill = np.full(vshape, _fill(dt), dtype=dt)
-        else:
-            fill = da.full(vshape, _fill(dt), dtype=dt, chunks=_fill_chunks_shape(vshape, grid))
+        fill = np.broadcast_to(np.array(_fill(dt), dtype=dt), vshape)  # no memory
         of_contacts = multi and name in contacts.MULTI_DTYPES
         vattrs = contacts.attrs(name, spec.structure.n_contacts) if of_contacts else _attrs(name)
         data_vars[name] = xr.Variable(vdims, fill, vattrs)
@@ -405,7 +385,7 @@ class _Deferred:
         self.pending: list[tuple[object, object]] = []
 
     def add(self, source, target, region=None) -> None:
-        if not isinstance(source, da.Array):  # placeholders are dask arrays: skipped
+        if not _is_placeholder(source):
             self.pending.append((source, target))
 
     def write(self) -> None:
@@ -427,7 +407,7 @@ def _define_scene(group, plan: ScenePlan, study: Study, gattrs: dict, values: _D
     if gattrs:
         ds = ds.assign_attrs({**gattrs, **ds.attrs})
     placeholders = set(plan.layout()[2])
-    ds = ds.assign({n: ds[n].copy(data=_lazy(ds[n].data)) for n in placeholders})
+    ds = ds.assign({n: _placeholder(ds[n]) for n in placeholders})
     dump_to_store(ds, NetCDF4DataStore(group), values, encoding=enc)
     for var in group.variables.values():
         _size_cache(var)
@@ -451,8 +431,20 @@ def _size_cache(var) -> None:
     var.set_var_chunk_cache(size=size, nelems=slots)
 
 
-def _lazy(data) -> da.Array:
-    return data if isinstance(data, da.Array) else da.from_array(data, chunks=-1, name=False)
+def _placeholder(var: xr.Variable) -> xr.Variable:
+    """A per-point variable without values (a read-only view of one fill value: no
+    memory, whatever the grid), encoded as xarray would encode it: a boolean as
+    ``int8`` with the attribute ``dtype = "bool"`` (xarray's ``BooleanCoder``; done
+    here so that the encoding keeps the view instead of converting the whole array)."""
+    if var.dtype != bool:
+        return var
+    data = np.broadcast_to(np.zeros((), dtype=np.int8), var.shape)
+    return var.copy(data=data).assign_attrs(dtype="bool")
+
+
+def _is_placeholder(source) -> bool:
+    """A placeholder's values (:func:`_placeholder`): never written, the units tile them."""
+    return isinstance(source, np.ndarray) and source.size > 1 and not any(source.strides)
 
 
 def _fill_units(group, plan: ScenePlan, work) -> None:

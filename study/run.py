@@ -22,13 +22,12 @@ from __future__ import annotations
 import logging
 import os
 import sys
+import threading
 import time
 from contextlib import contextmanager, nullcontext, suppress
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TextIO
-
-from distributed.diagnostics.plugin import WorkerPlugin
 
 from study.chunks import ScenePlan, plan
 from study.connect import DEFAULT_SCHEDULER_TIMEOUT, call_within, check_timeout
@@ -69,25 +68,30 @@ class RunSummary:
     write_seconds: float = 0.0
 
 
-class IgnoreSigint(WorkerPlugin):
-    """Worker plugin: a local worker process ignores SIGINT.
+def ignore_sigint_plugin():
+    """A worker plugin: a local worker process ignores SIGINT.
 
     Ctrl-C in a terminal reaches every process of the foreground group, the
     LocalCluster's worker processes included; they would die printing
     tracebacks while the client is still cancelling. The client handles
     Ctrl-C and then stops its own cluster. Registered only on the LocalCluster
-    that :func:`connect` starts, never on a shared cluster.
+    that :func:`connect` starts, never on a shared cluster. (Made on demand:
+    ``distributed`` is imported only by runs that use it.)
     """
+    from distributed.diagnostics.plugin import WorkerPlugin
 
-    name = "study-ignore-sigint"
-    idempotent = True
+    class IgnoreSigint(WorkerPlugin):
+        name = "study-ignore-sigint"
+        idempotent = True
 
-    def setup(self, worker) -> None:
-        import signal
-        import threading
+        def setup(self, worker) -> None:
+            import signal
+            import threading
 
-        if threading.current_thread() is threading.main_thread():
-            signal.signal(signal.SIGINT, signal.SIG_IGN)
+            if threading.current_thread() is threading.main_thread():
+                signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+    return IgnoreSigint()
 
 
 def dashboard_note(client, local: bool) -> str:
@@ -120,14 +124,29 @@ def connect(
     """A Dask client: the one given, a running scheduler, or a new LocalCluster.
 
     The LocalCluster has one single-threaded worker process per core and
-    listens on 127.0.0.1 only; with ``in_process`` threads, one worker of that
-    many threads in this process instead (no process to start: for studies
-    whose planned compute is short, :func:`study.drive.local_threads`). With a running
-    scheduler, ``workers`` means: wait until that many workers are connected.
-    A client that is given is neither changed nor closed.
+    listens on 127.0.0.1 only; with ``in_process`` threads, a pool of that many
+    threads of this process instead, without Dask (:class:`study.threads.ThreadClient`:
+    no process to start, for studies whose planned compute is short,
+    :func:`study.drive.local_threads`). With a running scheduler, ``workers``
+    means: wait until that many workers are connected. A client that is given is
+    neither changed nor closed.
     """
     if client is not None:
         yield client
+        return
+    if in_process:
+        from study.threads import ThreadClient
+
+        pool = ThreadClient(in_process)
+        print(
+            "study: a small study: computing in this process (no worker processes to wait "
+            f"for), {in_process} thread{'s' if in_process > 1 else ''}",
+            file=stream,
+        )
+        try:
+            yield pool
+        finally:
+            pool.close()
         return
     from distributed import Client, LocalCluster
 
@@ -165,14 +184,12 @@ def connect(
                 ) from None
             raise
     else:
-        n = 1 if in_process else workers or default_workers()
+        n = workers or default_workers()
         cluster = start_deferring_sigint(  # Ctrl-C during the start: one line (study.watchdog)
             lambda: LocalCluster(
                 n_workers=n,
-                threads_per_worker=max(1, in_process),
-                processes=not in_process,
-                # tcp:// for a cluster in this process too: inproc:// opens a port on
-                # every interface beside it
+                threads_per_worker=1,
+                processes=True,
                 protocol="tcp://",
                 host="127.0.0.1",
                 dashboard_address="127.0.0.1:0",
@@ -183,14 +200,9 @@ def connect(
         )
         try:
             client = Client(cluster)
-            client.register_plugin(IgnoreSigint())
-            what = (
-                "a small study: computing in this process (no worker processes to wait "
-                f"for), {in_process} thread{'s' if in_process > 1 else ''}"
-                if in_process
-                else f"local cluster with {n} workers"
-            )
-            print(f"study: {what}, {dashboard_note(client, local=True)}", file=stream)
+            client.register_plugin(ignore_sigint_plugin())
+            note = dashboard_note(client, local=True)
+            print(f"study: local cluster with {n} workers, {note}", file=stream)
         except BaseException as exc:
             if client is not None:
                 client.close()
@@ -415,6 +427,8 @@ def _compute(plans, work, where, retries, progress, timeouts, done, stream):
     )
     bar.eta_seconds = bar.tracker.eta
     in_process = local_threads(plans, work, default_workers()) if local and workers is None else 0
+    if in_process:  # (with Dask the client imports distributed meanwhile: not both)
+        threading.Thread(target=_import_writer, name="study-import", daemon=True).start()
     if local:
         compile_once(stream)  # before the local workers start: they load it from cache
     quiet = quiet_dask_logs() if client is None else nullcontext()
@@ -426,18 +440,34 @@ def _compute(plans, work, where, retries, progress, timeouts, done, stream):
     with quiet, connect(client, scheduler, scheduler_file, workers, stream, **kw) as c:
         bar.start()
         t1 = time.perf_counter()
-        dog = Watchdog(
-            c,
-            worker_timeout,
-            local=local,
-            where=str(work.path),
-            stream=stream,
-            scheduler_timeout=scheduler_timeout,
-        )
+        dog = None  # threads of this process: no scheduler or worker to lose
+        if not in_process:
+            dog = Watchdog(
+                c,
+                worker_timeout,
+                local=local,
+                where=str(work.path),
+                stream=stream,
+                scheduler_timeout=scheduler_timeout,
+            )
         drive(c, plans, work, bar, retries, done, watchdog=dog)
         wall = time.perf_counter() - t1
     bar.close()
     return done.compute_seconds, wall
+
+
+def _import_writer() -> None:
+    """Import what assembling the result needs (xarray, netCDF4, and dask.array, which
+    xarray imports at its first variable when dask is installed: about a second)
+    while a study computes in threads of this process, instead of after it. None of
+    these is imported by the client's thread meanwhile."""
+    with suppress(Exception):  # the imports where they are used report any error
+        import numpy as np
+        import xarray as xr
+
+        import study.netcdf  # noqa: F401
+
+        xr.Variable("x", np.zeros(1))  # xarray's look for dask arrays imports dask
 
 
 def _assemble(study: Study, plans: list[ScenePlan], work, output, command: str | None):

@@ -146,6 +146,33 @@ def test_plan_command(study_file, run_cli):
     assert f"{s.n_points:,} points" in proc.stdout
 
 
+def test_plan_wall_estimate_where_the_run_computes(study_file, run_cli):
+    """Without --workers a short study runs in threads of its own process
+    (study.drive.local_threads): no cluster start-up in the estimate."""
+    import re
+
+    from study.cost import IN_PROCESS_STARTUP_SECONDS, SCHEDULING_OVERHEAD, STARTUP_SECONDS
+
+    study_file(TEXT)
+    total = {}
+    for extra in ((), ("--workers", "2")):
+        proc = run_cli("plan", "study.toml", *extra)
+        assert proc.returncode == 0, proc.stderr
+        line = proc.stdout.splitlines()[-1]
+        cpu = sum(float(r.split()[-1]) for r in proc.stdout.splitlines()[2:-1])
+        total[extra] = float(re.search(r"about ([\d.,]+) s (in|on)", line).group(1))
+        if extra:
+            assert "on 2 workers" in line and "thread" not in line
+            expected = STARTUP_SECONDS + cpu / 2 * (1 + SCHEDULING_OVERHEAD)
+        else:
+            m = re.search(r"in (\d+) threads? of the run's process", line)
+            assert m, line
+            threads = int(m.group(1))
+            expected = IN_PROCESS_STARTUP_SECONDS + cpu / threads * (1 + SCHEDULING_OVERHEAD)
+        assert abs(total[extra] - expected) <= 0.6, (line, expected)
+    assert total[()] < total[("--workers", "2")]
+
+
 @pytest.mark.parametrize(
     "name", ["quickstart", "fig03", "fig04", "fig05", "fig10a", "fig10b", "fig14", "fig15", "fig17"]
 )

@@ -143,7 +143,7 @@ def test_adaptive_planes_and_point_lists_are_verified_before_use(tmp_path, clien
     work = _kept_work(study, out, client, monkeypatch)
     planes = sorted((work / "sweep").glob("*-plane-*.npz"))
     lists = sorted((work / "sweep").glob("*-pts-*.npz"))
-    assert len(planes) == 2 and len(lists) >= 4
+    assert len(planes) == 2 and len(lists) >= 2  # point lists merged (study.saving)
     # a plane re-signed as 1 x 1 (it was accepted: 118,274 of 540,000 regimes wrong)
     _resign(planes[0], lambda a: {k: (v[:1, :1] if v.ndim >= 2 else v) for k, v in a.items()})
     _resign(planes[1], lambda a: {k: v for k, v in a.items() if k != "dissipation"})
@@ -205,7 +205,8 @@ def test_work_folder_deleted_mid_run_blocks_a_second_run(tmp_path):
     first = _start_run(tmp_path, "-o", "long.nc", "--workers", "1", "--quiet", study=longer)
     try:
         _wait_saved(out, 2, first)
-        shutil.rmtree(out.with_name("long.nc.work"))
+        # the run saves meanwhile: a temporary file may be renamed under rmtree's feet
+        shutil.rmtree(out.with_name("long.nc.work"), ignore_errors=True)
         second = subprocess.run(
             [sys.executable, "-m", "study", "run", "long.toml", "-o", "long.nc", "--quiet"],
             cwd=tmp_path,
