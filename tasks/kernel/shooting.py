@@ -63,10 +63,17 @@ REC_ROWS = 512
 FD_REACH = 1e-3
 STEP_REACH = 0.1
 # Newton steps on the followed map between two full periods of :func:`_shoot`.
-FOLLOW_NEWTON = 6
+FOLLOW_NEWTON = 12
+# Halvings of a Newton step on the followed map that does not reduce the residual.
+FOLLOW_HALVINGS = 3
 # Sections a slow point's Newton settle tries (:func:`settle_at_phases`).
 SETTLE_PHASES = 4
 SETTLE_CYCLES = 150
+# Stability test of a fixed point: spectral radius of dP/dy at most STABLE_RADIUS.
+STABLE_RADIUS = 1.0 + 1e-6
+# Squarings of dP/dy the stability test tries before it computes the eigenvalues
+# (:func:`radius_within`).
+RADIUS_SQUARINGS = 6
 
 
 @njit(cache=True)
@@ -80,6 +87,60 @@ def _broyden_update(J, dR, step):
         for i in range(dim):
             for k in range(dim):
                 J[i, k] += u[i] * step[k] / ss
+
+
+@njit(cache=True)
+def _norm_inf(A):
+    """The induced infinity norm of ``A`` (largest absolute row sum)."""
+    acc = 0.0
+    for i in range(A.shape[0]):
+        row = 0.0
+        for k in range(A.shape[1]):
+            row += abs(A[i, k])
+        acc = max(acc, row)
+    return acc
+
+
+@njit(cache=True)
+def radius_within(A, bound):
+    """Whether the spectral radius of the square matrix ``A`` is at most ``bound``.
+
+    ``rho(A) <= ||A^k||^(1 / k)`` for every k and every induced norm, so a power
+    ``A^k`` (k = 1, 2, 4, ..., ``2^RADIUS_SQUARINGS``, by repeated squaring, rescaled
+    so that nothing overflows) whose infinity norm is at most ``bound^k`` proves it
+    in a few small matrix products; where none does (a multiplier near or above
+    ``bound``, or a strongly non-normal matrix) the eigenvalues decide. The answer
+    is the eigenvalues' except within rounding of ``bound``.
+    """
+    dim = A.shape[0]
+    B = A.copy()
+    C = np.empty_like(B)
+    log_bound = math.log(bound)
+    log_scale = 0.0  # B = A^k / exp(log_scale)
+    k = 1.0
+    for _ in range(RADIUS_SQUARINGS + 1):
+        nrm = _norm_inf(B)
+        if nrm == 0.0:
+            return True
+        if not nrm < np.inf:
+            break
+        log_scale += math.log(nrm)
+        if log_scale <= k * log_bound:
+            return True
+        for i in range(dim):
+            for j in range(dim):
+                B[i, j] /= nrm
+        for i in range(dim):
+            for j in range(dim):
+                acc = 0.0
+                for m in range(dim):
+                    acc += B[i, m] * B[m, j]
+                C[i, j] = acc
+        B, C = C, B
+        log_scale *= 2.0
+        k *= 2.0
+    radius = np.max(np.abs(np.linalg.eigvals(A.astype(np.complex128))))
+    return radius <= bound
 
 
 @njit(cache=True)
@@ -329,8 +390,9 @@ def _follow_newton(y0, R0, J, mode, rec, nr, ctx, work, theta, target, scale):
     The map is the current period's event pattern followed from nearby starts
     (:func:`_follow_records`, events moving by up to ``STEP_REACH`` of their
     phase): no bracket scan, so a step costs a few evaluations per event. At most
-    ``FOLLOW_NEWTON`` steps, each of which must reduce the residual, until it is
-    below ``target``. The result is only a candidate: :func:`_shoot` verifies it on
+    ``FOLLOW_NEWTON`` steps, each of which must reduce the residual (else it is
+    halved, up to ``FOLLOW_HALVINGS`` times, as long as it follows the pattern),
+    until it is below ``target``. The result is only a candidate: :func:`_shoot` verifies it on
     a full period (a new event would change the map there, and the residual).
     Returns ``(y, moved)``; ``J`` is updated in place.
     """
@@ -351,16 +413,26 @@ def _follow_newton(y0, R0, J, mode, rec, nr, ctx, work, theta, target, scale):
             break
         if not np.all(np.isfinite(step)) or _max_abs(step) > 10.0 * scale:
             break
-        yn = yf + step
-        if not _follow_records(
-            _expand(yn, mode, n, w, T), mode, rec, nr, ctx, work, theta, Pf, STEP_REACH
-        ):
+        # a step that does not reduce the residual is halved (a damped Newton step
+        # on the followed map, FOLLOW_HALVINGS times at most); one that leaves the
+        # recorded pattern ends the steps (the full period decides there)
+        lam = 1.0
+        reduced = False
+        for _ls in range(FOLLOW_HALVINGS + 1):
+            yn = yf + lam * step
+            if not _follow_records(
+                _expand(yn, mode, n, w, T), mode, rec, nr, ctx, work, theta, Pf, STEP_REACH
+            ):
+                break
+            Rn = _reduce(Pf, mode, b, w, proj) - yn
+            rn = _max_abs(Rn)
+            if rn < res_f:
+                reduced = True
+                break
+            lam *= 0.5
+        if not reduced:
             break
-        Rn = _reduce(Pf, mode, b, w, proj) - yn
-        rn = _max_abs(Rn)
-        if not rn < res_f:
-            break
-        _broyden_update(J, Rn - Rf, step)
+        _broyden_update(J, Rn - Rf, yn - yf)
         yf = yn
         Rf = Rn
         res_f = rn
@@ -423,8 +495,7 @@ def _shoot(X0, mode, stats, ctx, work, rtol, floor, max_newton, theta, keep, kep
             dP = J.copy()
             for i in range(dim):
                 dP[i, i] += 1.0
-            radius = np.max(np.abs(np.linalg.eigvals(dP.astype(np.complex128))))
-            stable = radius <= 1.0 + 1e-6
+            stable = radius_within(dP, STABLE_RADIUS)
             nr = rec_n[0]
             if stable and nr < rec.shape[0] and nr <= keep.shape[0]:
                 keep[:nr] = rec[:nr]  # the verified period's events, for the orbit check
@@ -433,19 +504,24 @@ def _shoot(X0, mode, stats, ctx, work, rtol, floor, max_newton, theta, keep, kep
         if _records_usable(rec, rec_n[0]):
             # Newton on the followed map (no bracket scans), then one full period
             # from its candidate: the new iterate if it reduced the residual
+            target = 0.01 * rtol * max(scale, floor)
             yf, moved = _follow_newton(
-                y0,
-                R,
-                J,
-                mode,
-                rec,
-                rec_n[0],
-                ctx,
-                work,
-                theta,
-                0.01 * rtol * max(scale, floor),
-                scale,
+                y0, R, J, mode, rec, rec_n[0], ctx, work, theta, target, scale
             )
+            if not moved and not fresh:
+                # the updated Jacobian no longer reduces the residual of the
+                # followed map: rebuild it here from followed columns (cheap)
+                # before a step on full periods
+                used = _fd_jacobian(y0, y1, mode, ctx, work, scale, J, theta, rec, rec_n[0])
+                if used < 0:
+                    return False, X0, cycles + dim
+                cycles += used
+                if not np.all(np.isfinite(J)):
+                    return False, X0, cycles
+                fresh = True
+                yf, moved = _follow_newton(
+                    y0, R, J, mode, rec, rec_n[0], ctx, work, theta, target, scale
+                )
             if moved:
                 Xn = _expand(yf, mode, n, w, T)
                 X1n, mn = _period_recorded(
@@ -556,8 +632,7 @@ def newton_settle(X0, mode, stats, ctx, work, rtol, floor, max_iter, theta):
             dP = J.copy()
             for i in range(dim):
                 dP[i, i] += 1.0
-            radius = np.max(np.abs(np.linalg.eigvals(dP.astype(np.complex128))))
-            if radius > 1.0 + 1e-6:
+            if not radius_within(dP, STABLE_RADIUS):
                 return False, X, cycles
             _cycle(X, _phase_of(X, mode, b), theta, stats, ctx, work, theta)
             return True, X, cycles + 1
