@@ -77,6 +77,16 @@ def evaluate(seg, sc, t, eta, etad):
     returns ``(y, y')``, the observable and its derivative. A damped scene
     (``sc[DAMPED]``) takes :func:`tasks.kernel.damping.evaluate_damped`.
     """
+    return evaluate_inline(seg, sc, t, eta, etad)
+
+
+@njit(inline="always")
+def evaluate_inline(seg, sc, t, eta, etad):
+    """:func:`evaluate`, inlined where it is called (numba IR inlining: the same
+    operations, so the same values to the last bit). The hot loops (event search,
+    followed periods, orbit samples) take it: a call of a compiled function that
+    passes arrays costs reference counting (two atomic operations per array),
+    which is about as much as evaluating the phase itself."""
     if sc[DAMPED] != 0.0:
         return evaluate_damped(seg, sc, t, eta, etad)
     m = seg.shape[1]
@@ -138,7 +148,7 @@ def event_function(seg, sc, t, eta, etad):
 
     Counts the work in ``sc[EVALS]``, in mode evaluations (the budget of a point)."""
     sc[EVALS] += 1.0 + seg.shape[1]
-    y, dy = evaluate(seg, sc, t, eta, etad)
+    y, dy = evaluate_inline(seg, sc, t, eta, etad)
     if sc[KIND] == KIND_SLIP:
         return sc[SIGN] * y, sc[SIGN] * dy
     if y >= 0.0:
@@ -146,7 +156,7 @@ def event_function(seg, sc, t, eta, etad):
     return sc[BETA] + y, dy
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def derivative_bounds(seg, sc, t_end):
     """Upper bounds of ``|y'|`` and ``|y''|`` over ``[0, t_end]`` of a phase.
 
