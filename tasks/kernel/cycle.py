@@ -54,7 +54,7 @@ from tasks.kernel.phases import (
     _start_stick,
     _stick_state,
 )
-from tasks.kernel.propagation import evaluate_inline
+from tasks.kernel.propagation import evaluate
 from tasks.regimes import EVENT_LIMIT, NUMERICAL_FAILURE, WORK_LIMIT
 
 # Work units (``sc[EVALS]``, mode evaluations) charged per event and per N^2:
@@ -163,7 +163,7 @@ def run_cycle(x, xd, mode, stick_start, stats, ctx, work, rec, rec_n, tau_start,
                 t, found = remaining, False
             else:
                 t, found = next_event(seg_stick, sc, remaining, h_stick, tol, eta_s, etad_s)
-            g, _ = evaluate_inline(seg_stick, sc, t, eta_s, etad_s)
+            g, _ = evaluate(seg_stick, sc, t, eta_s, etad_s)
             _stick_state(phi_s, T, w, d0, eta_s, etad_s, q, x, xd, seg_stick[ETAD_OFF])
             stats[ST_STUCK_TIME] += t
             if t > stats[ST_LONGEST]:
@@ -180,7 +180,7 @@ def run_cycle(x, xd, mode, stick_start, stats, ctx, work, rec, rec_n, tau_start,
             s = float(mode)
             _start_slip(seg_slip, sc, x, xd, tau, s, v0, beta, f_r2, phi_t_gamma)
             t, found = next_event(seg_slip, sc, remaining, h_slip, tol, eta, etad)
-            evaluate_inline(seg_slip, sc, t, eta, etad)
+            evaluate(seg_slip, sc, t, eta, etad)
             _slip_state(phi, eta, etad, x, xd, seg_slip[ETAD_OFF])
             if t > stats[ST_LONGEST]:
                 stats[ST_LONGEST] = t

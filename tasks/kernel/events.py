@@ -31,6 +31,7 @@ from tasks.kernel.layout import (
     KIND,
     KIND_SLIP,
     KIND_STICK,
+    LEAF,
     LOAD_CONST,
     LOAD_COS,
     OBS0,
@@ -40,10 +41,10 @@ from tasks.kernel.layout import (
     SIN_TAU0,
     WORK_CAP,
 )
-from tasks.kernel.propagation import derivative_bounds, evaluate_inline, start_taylor
+from tasks.kernel.propagation import derivative_bounds, evaluate, start_taylor
 
 
-@njit(inline="always")
+@njit(**LEAF)
 def _no_zero_between(fa, da, fb, db, h, curvature, slope=np.inf):
     """Certificate that F > 0 on ``(a, a + h)`` from its values and slopes at both
     ends, ``|F''| <= curvature`` and ``|F'| <= slope``: the lower bounds
@@ -63,7 +64,7 @@ def _no_zero_between(fa, da, fb, db, h, curvature, slope=np.inf):
     return ua + wb >= h
 
 
-@njit(cache=True, inline="always")
+@njit(**LEAF)
 def stick_force_bound(seg, sc):
     """``|G0| + |H| + sum_k |alpha_k| A_free,k``: the largest ``|g|`` a stick phase
     can ever reach (the bound of :func:`never_unsticks`; tight when the free
@@ -92,7 +93,7 @@ def stick_force_bound(seg, sc):
     return abs(const) + abs(harmonic) + free_sum
 
 
-@njit(cache=True, inline="always")
+@njit(**LEAF)
 def never_unsticks(seg, sc):
     """Certificate that a stick phase lasts for ever (docs/theory.md 4.2, held contact).
 
@@ -106,7 +107,7 @@ def never_unsticks(seg, sc):
     return math.isfinite(total) and total <= sc[BETA] * (1.0 + 1e-12)
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def _solve_bracket(seg, sc, lo, hi, f_lo, d_lo, y_lo, dy_lo, f_hi, d_hi, tol, eta, etad):
     """Safeguarded Newton on F in a sign-changing bracket, to ``hi - lo <= tol``.
 
@@ -156,14 +157,14 @@ def _solve_bracket(seg, sc, lo, hi, f_lo, d_lo, y_lo, dy_lo, f_hi, d_hi, tol, et
     return lo, hi, y_lo, dy_lo
 
 
-@njit(inline="always")
+@njit(**LEAF)
 def _observe(seg, sc, t, eta, etad):
     """``(y, y')`` of the phase's observable at t, counting the work in ``sc[EVALS]``."""
     sc[EVALS] += 1.0 + seg.shape[1]
-    return evaluate_inline(seg, sc, t, eta, etad)
+    return evaluate(seg, sc, t, eta, etad)
 
 
-@njit(inline="always")
+@njit(**LEAF)
 def _event_value(sc, y, dy):
     """``(F, F')`` from the observable: ``s y`` sliding, ``beta - |y|`` stuck."""
     if sc[KIND] == KIND_SLIP:
@@ -173,7 +174,7 @@ def _event_value(sc, y, dy):
     return sc[BETA] + y, dy
 
 
-@njit(inline="always")
+@njit(**LEAF)
 def _clear(sc, ya, dya, yb, dyb, h, curvature, slope):
     """Certificate that the event function stays positive on ``(a, a + h)``.
 
@@ -191,7 +192,7 @@ def _clear(sc, ya, dya, yb, dyb, h, curvature, slope):
     ) and _no_zero_between(beta + ya, dya, beta + yb, dyb, h, curvature, slope)
 
 
-@njit(inline="always")
+@njit(**LEAF)
 def _clear_ahead(sc, y, dy, curvature):
     """How far ahead of a point the event function provably stays positive:
     ``u`` with ``F + F' u - curvature u^2 / 2 > 0`` before it, on ``F = s y``
@@ -206,7 +207,7 @@ def _clear_ahead(sc, y, dy, curvature):
     return min(up, down)
 
 
-@njit(inline="always")
+@njit(**LEAF)
 def _out_of_work(sc):
     return sc[EVALS] > sc[WORK_CAP]
 
@@ -301,7 +302,7 @@ def _first_zero(seg, sc, lo, hi, y_lo, dy_lo, y_hi, dy_hi, curvature, slope, tol
         if r_lo <= lo:
             return r_hi, True
         if _clear(sc, y_lo, dy_lo, y_r, dy_r, r_lo - lo, curvature, slope):
-            return r_hi, True  # (_dip's own first test, inlined)
+            return r_hi, True  # (_dip's own first test, without the call)
         a, b, kind, y_lo, dy_lo, y_hi, dy_hi = _dip(
             seg, sc, lo, r_lo, y_lo, dy_lo, y_r, dy_r, curvature, slope, tol, False, 0.0, eta, etad
         )
@@ -315,7 +316,7 @@ def _first_zero(seg, sc, lo, hi, y_lo, dy_lo, y_hi, dy_hi, curvature, slope, tol
         hi = b
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def _taylor_clear(seg, sc, y0, f0, d0, floor, t_max):
     """Length ``T <= t_max`` of the start ``(0, T]`` of a phase proved to keep
     ``F > -floor`` by the Taylor bound ``F(t) >= F(0) + F'(0) t + F''(0) t^2 / 2 -
@@ -458,7 +459,7 @@ def next_event(seg, sc, t_end, h, tol, eta, etad):
         fb, _ = _event_value(sc, yb, dyb)
         if fb <= 0.0:
             return _first_zero(seg, sc, ta, tb, ya, dya, yb, dyb, curvature, slope, tol, eta, etad)
-        # (the certificate first, inlined: the common case needs no call of _dip)
+        # (the certificate first: the common case needs no call of _dip)
         if not certified and not _clear(sc, ya, dya, yb, dyb, tb - ta, curvature, slope):
             lo, hi, kind, y_lo, dy_lo, y_hi, dy_hi = _dip(
                 seg, sc, ta, tb, ya, dya, yb, dyb, curvature, slope, tol, False, 0.0, eta, etad

@@ -53,7 +53,7 @@ from tasks.kernel.layout import (
 )
 from tasks.kernel.outcome import _undetermined
 from tasks.kernel.phases import _dot, _start_slip, _start_stick
-from tasks.kernel.propagation import derivative_bounds, evaluate_inline
+from tasks.kernel.propagation import derivative_bounds, evaluate
 from tasks.regimes import NO_MOTION, NUMERICAL_FAILURE, WORK_LIMIT
 
 # Orbit invariant (:func:`orbit_holds`): stated tolerance of ``|g| <= beta`` in
@@ -85,7 +85,7 @@ def _phase_holds(seg, sc, t_len, h, tol):
         slope, _ = derivative_bounds(seg, sc, t_len)
         limit = sc[BETA] * (1.0 + ORBIT_RTOL) + tol * slope
         for i in range(1, n_samples + 1):
-            y, _ = evaluate_inline(seg, sc, i * dt, eta, etad)
+            y, _ = evaluate(seg, sc, i * dt, eta, etad)
             if not abs(y) <= limit:
                 return 0
         sc[EVALS] += n_samples * (1.0 + m)
@@ -94,7 +94,7 @@ def _phase_holds(seg, sc, t_len, h, tol):
     vmax = 0.0
     vmin = 0.0
     for i in range(1, n_samples + 1):
-        y, _ = evaluate_inline(seg, sc, i * dt, eta, etad)
+        y, _ = evaluate(seg, sc, i * dt, eta, etad)
         v = s * y
         vmax = max(vmax, abs(v))
         vmin = min(vmin, v)

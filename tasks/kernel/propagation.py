@@ -49,6 +49,7 @@ from tasks.kernel.layout import (
     EVALS,
     KIND,
     KIND_SLIP,
+    LEAF,
     LOAD_CONST,
     LOAD_COS,
     OBS0,
@@ -59,7 +60,7 @@ from tasks.kernel.layout import (
 )
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def sin_over(e: float, u: float) -> float:
     """``sin(e u) / e``, exact as e -> 0 (limit u)."""
     x = e * u
@@ -69,7 +70,7 @@ def sin_over(e: float, u: float) -> float:
     return math.sin(x) / e
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def evaluate(seg, sc, t, eta, etad):
     """State and observable of a phase at time ``t`` after its start.
 
@@ -77,16 +78,6 @@ def evaluate(seg, sc, t, eta, etad):
     returns ``(y, y')``, the observable and its derivative. A damped scene
     (``sc[DAMPED]``) takes :func:`tasks.kernel.damping.evaluate_damped`.
     """
-    return evaluate_inline(seg, sc, t, eta, etad)
-
-
-@njit(inline="always")
-def evaluate_inline(seg, sc, t, eta, etad):
-    """:func:`evaluate`, inlined where it is called (numba IR inlining: the same
-    operations, so the same values to the last bit). The hot loops (event search,
-    followed periods, orbit samples) take it: a call of a compiled function that
-    passes arrays costs reference counting (two atomic operations per array),
-    which is about as much as evaluating the phase itself."""
     if sc[DAMPED] != 0.0:
         return evaluate_damped(seg, sc, t, eta, etad)
     m = seg.shape[1]
@@ -142,13 +133,13 @@ def evaluate_inline(seg, sc, t, eta, etad):
     return y, dy
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def event_function(seg, sc, t, eta, etad):
     """``(F, F')`` at t: ``s y`` while sliding, ``beta - |y|`` while stuck.
 
     Counts the work in ``sc[EVALS]``, in mode evaluations (the budget of a point)."""
     sc[EVALS] += 1.0 + seg.shape[1]
-    y, dy = evaluate_inline(seg, sc, t, eta, etad)
+    y, dy = evaluate(seg, sc, t, eta, etad)
     if sc[KIND] == KIND_SLIP:
         return sc[SIGN] * y, sc[SIGN] * dy
     if y >= 0.0:
@@ -156,7 +147,7 @@ def event_function(seg, sc, t, eta, etad):
     return sc[BETA] + y, dy
 
 
-@njit(cache=True, inline="always")
+@njit(**LEAF)
 def derivative_bounds(seg, sc, t_end):
     """Upper bounds of ``|y'|`` and ``|y''|`` over ``[0, t_end]`` of a phase.
 
@@ -218,7 +209,7 @@ def derivative_bounds(seg, sc, t_end):
     return d1, d2
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def start_taylor(seg, sc, t_end):
     """``y''(0)`` and a bound of ``|y'''|`` over ``[0, t_end]`` of a phase's observable.
 

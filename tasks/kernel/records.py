@@ -35,7 +35,7 @@ from tasks.kernel.layout import (
     ST_STATUS,
 )
 from tasks.kernel.phases import _slip_state, _start_slip, _start_stick, _stick_state
-from tasks.kernel.propagation import evaluate_inline
+from tasks.kernel.propagation import evaluate
 
 
 @njit(cache=True)
@@ -126,13 +126,13 @@ def sample_states(ctx, work, rec, taus):
                 )
         if mode == 0:
             seg = ctx[CTX_SEG_STICK]
-            evaluate_inline(seg, ctx[CTX_SC], tau - tau0, eta_s, etad_s)
+            evaluate(seg, ctx[CTX_SC], tau - tau0, eta_s, etad_s)
             _stick_state(
                 ctx[CTX_PHI_S], ctx[CTX_T], ctx[CTX_W], d0, eta_s, etad_s, q, x, xd, seg[ETAD_OFF]
             )
         else:
             seg = ctx[CTX_SEG_SLIP]
-            evaluate_inline(seg, ctx[CTX_SC], tau - tau0, eta, etad)
+            evaluate(seg, ctx[CTX_SC], tau - tau0, eta, etad)
             _slip_state(ctx[CTX_PHI], eta, etad, x, xd, seg[ETAD_OFF])
         out[i, :n] = x
         out[i, n:] = xd

@@ -51,7 +51,7 @@ from tasks.kernel.layout import (
     TWO_PI,
 )
 from tasks.kernel.phases import _dot, _slip_state, _start_slip, _start_stick, _stick_state
-from tasks.kernel.propagation import evaluate_inline
+from tasks.kernel.propagation import evaluate
 from tasks.kernel.starts import start_phase
 
 # Rows of the event record a shooting period keeps (:func:`_period_recorded`); a
@@ -305,7 +305,7 @@ def _follow_records(X, mode, rec, nr, ctx, work, theta, out, reach):
                 target = sc[BETA] if rec[j + 1, REC_G] > 0.0 else -sc[BETA]
             settled = False
             for _ in range(12):
-                y, dy = evaluate_inline(seg, sc, t, ev, evd)
+                y, dy = evaluate(seg, sc, t, ev, evd)
                 if not (dy != 0.0 and math.isfinite(dy)):
                     return False
                 dt = (target - y) / dy
@@ -319,7 +319,7 @@ def _follow_records(X, mode, rec, nr, ctx, work, theta, out, reach):
                 return False
             if not (t > 0.0 and tau + t < tau_end):
                 return False
-        evaluate_inline(seg, sc, t, ev, evd)
+        evaluate(seg, sc, t, ev, evd)
         if stuck:
             _stick_state(
                 ctx[CTX_PHI_S], ctx[CTX_T], ctx[CTX_W], d0, ev, evd, q, x, xd, seg[ETAD_OFF]
