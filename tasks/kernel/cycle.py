@@ -27,6 +27,7 @@ from tasks.kernel.layout import (
     EV_STOP,
     EV_UNSTICK,
     EVALS,
+    LEAF,
     N_STATS,
     REC_G,
     REC_KIND,
@@ -62,7 +63,7 @@ from tasks.regimes import EVENT_LIMIT, NUMERICAL_FAILURE, WORK_LIMIT
 EVENT_WORK = 4.0
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def _record(rec, rec_n, tau, kind, mode, g, x, xd):
     """Append one event to the record buffer (if there is room)."""
     k = rec_n[0]
@@ -230,7 +231,7 @@ def run_cycle(x, xd, mode, stick_start, stats, ctx, work, rec, rec_n, tau_start,
     return mode, stick_start
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def _max_abs(v):
     acc = 0.0
     for i in range(v.shape[0]):
@@ -240,7 +241,7 @@ def _max_abs(v):
     return acc
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def _max_abs_diff(a, b):
     acc = 0.0
     for i in range(a.shape[0]):

@@ -39,6 +39,7 @@ from tasks.kernel.layout import (
     ETAD_OFF,
     EV_END,
     EV_GRAZE,
+    LEAF,
     N_STATS,
     REC_G,
     REC_KIND,
@@ -89,7 +90,7 @@ def _broyden_update(J, dR, step):
                 J[i, k] += u[i] * step[k] / ss
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def _norm_inf(A):
     """The induced infinity norm of ``A`` (largest absolute row sum)."""
     acc = 0.0
@@ -183,7 +184,7 @@ def _expand(y, mode, n, w, T):
     return X
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def _phase_of(X, mode, b):
     """Phase a section state starts in: stuck stays stuck; a sliding state slides
     with the sign of its contact velocity (the flow is continuous across a
@@ -199,7 +200,7 @@ def _phase_of(X, mode, b):
     return mode
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def _same_chart(mode_a, mode_b):
     return (mode_a == 0) == (mode_b == 0)
 
@@ -220,7 +221,7 @@ def _period_recorded(X, mode, stats, ctx, work, theta, rec, rec_n):
     return X1, m1
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def _records_usable(rec, nr):
     """Whether a recorded period can carry nearby starts (:func:`_follow_records`):
     complete (it ends with its ``EV_END`` row) and without grazes (a touching zero
