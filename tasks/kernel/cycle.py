@@ -80,7 +80,7 @@ def _record(rec, rec_n, tau, kind, mode, g, x, xd):
     rec_n[0] = k + 1
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def run_cycle(x, xd, mode, stick_start, stats, ctx, work, rec, rec_n, tau_start, tau_end):
     """Advance ``(x, x', mode)`` from ``tau_start`` to ``tau_end`` (one period, or part).
 
@@ -124,7 +124,7 @@ def run_cycle(x, xd, mode, stick_start, stats, ctx, work, rec, rec_n, tau_start,
         max_work,
         g_c,
     ) = ctx
-    eta, etad, eta_s, etad_s, q = work
+    eta, etad, eta_s, etad_s, q, stack = work
     for i in range(N_STATS):
         stats[i] = 0.0
     d = _dot(b, x)
@@ -163,7 +163,7 @@ def run_cycle(x, xd, mode, stick_start, stats, ctx, work, rec, rec_n, tau_start,
                 stats[ST_FOREVER] = 1.0
                 t, found = remaining, False
             else:
-                t, found = next_event(seg_stick, sc, remaining, h_stick, tol, eta_s, etad_s)
+                t, found = next_event(seg_stick, sc, remaining, h_stick, tol, eta_s, etad_s, stack)
             g, _ = evaluate(seg_stick, sc, t, eta_s, etad_s)
             _stick_state(phi_s, T, w, d0, eta_s, etad_s, q, x, xd, seg_stick[ETAD_OFF])
             stats[ST_STUCK_TIME] += t
@@ -180,7 +180,7 @@ def run_cycle(x, xd, mode, stick_start, stats, ctx, work, rec, rec_n, tau_start,
         else:
             s = float(mode)
             _start_slip(seg_slip, sc, x, xd, tau, s, v0, beta, f_r2, phi_t_gamma)
-            t, found = next_event(seg_slip, sc, remaining, h_slip, tol, eta, etad)
+            t, found = next_event(seg_slip, sc, remaining, h_slip, tol, eta, etad, stack)
             evaluate(seg_slip, sc, t, eta, etad)
             _slip_state(phi, eta, etad, x, xd, seg_slip[ETAD_OFF])
             if t > stats[ST_LONGEST]:

@@ -323,7 +323,7 @@ def orbit_design_recorded(r, beta, scene, settings, state, period, samples, dout
     elif damped:  # stuck the whole (converged) orbit: G0 + Hc cos + Hs sin, no free part left
         x = state[:n].copy()
         xd = state[n : 2 * n].copy()
-        eta, etad, eta_s, etad_s, q = work
+        eta, etad, eta_s, etad_s, q, _ = work
         _start_stick(
             ctx[CTX_SEG_STICK],
             ctx[CTX_SC],

@@ -43,6 +43,10 @@ from tasks.kernel.layout import (
 )
 from tasks.kernel.propagation import derivative_bounds, evaluate, start_taylor
 
+# Rows of the bisection stack of :func:`_dip` (``work[5]`` of a point's context):
+# brackets still to search, at most one per halving level.
+DIP_STACK = 128
+
 
 @njit(**LEAF)
 def _no_zero_between(fa, da, fb, db, h, curvature, slope=np.inf):
@@ -212,8 +216,10 @@ def _out_of_work(sc):
     return sc[EVALS] > sc[WORK_CAP]
 
 
-@njit(cache=True)
-def _dip(seg, sc, ta, tb, ya, dya, yb, dyb, curvature, slope, tol, skip_graze, floor, eta, etad):
+@njit(**LEAF)
+def _dip(
+    seg, sc, ta, tb, ya, dya, yb, dyb, curvature, slope, tol, skip_graze, floor, eta, etad, stack
+):
     """Search ``(ta, tb)`` (F > 0 at both ends) for the first point where F <= 0.
 
     Bisects the parts of the bracket the certificate (:func:`_clear`) cannot
@@ -230,29 +236,27 @@ def _dip(seg, sc, ta, tb, ya, dya, yb, dyb, curvature, slope, tol, skip_graze, f
     """
     if _clear(sc, ya, dya, yb, dyb, tb - ta, curvature, slope):
         return ta, tb, 0, ya, dya, yb, dyb  # the common case: no stack needed
-    stack_a = np.empty(128)
-    stack_b = np.empty(128)
-    vals = np.empty((128, 4))
-    stack_a[0] = ta
-    stack_b[0] = tb
-    vals[0, 0] = ya
-    vals[0, 1] = dya
-    vals[0, 2] = yb
-    vals[0, 3] = dyb
+    # the brackets still to search: rows (a, b, y(a), y'(a), y(b), y'(b))
+    stack[0, 0] = ta
+    stack[0, 1] = tb
+    stack[0, 2] = ya
+    stack[0, 3] = dya
+    stack[0, 4] = yb
+    stack[0, 5] = dyb
     top = 1
     skip = skip_graze or sc[KIND] == KIND_STICK
     while top > 0:
         top -= 1
-        a = stack_a[top]
-        b = stack_b[top]
-        y_a = vals[top, 0]
-        d_a = vals[top, 1]
-        y_b = vals[top, 2]
-        d_b = vals[top, 3]
+        a = stack[top, 0]
+        b = stack[top, 1]
+        y_a = stack[top, 2]
+        d_a = stack[top, 3]
+        y_b = stack[top, 4]
+        d_b = stack[top, 5]
         if _clear(sc, y_a, d_a, y_b, d_b, b - a, curvature, slope):
             continue
         m = 0.5 * (a + b)
-        if b - a <= tol or not (a < m < b) or top >= 126:
+        if b - a <= tol or not (a < m < b) or top >= DIP_STACK - 2:
             if skip:
                 continue
             return a, m, 2, y_a, d_a, np.nan, np.nan
@@ -263,25 +267,25 @@ def _dip(seg, sc, ta, tb, ya, dya, yb, dyb, curvature, slope, tol, skip_graze, f
         if f_m <= -floor:
             return a, m, 1, y_a, d_a, y_m, d_m
         # right half first on the stack, so the left half is searched first
-        stack_a[top] = m
-        stack_b[top] = b
-        vals[top, 0] = y_m
-        vals[top, 1] = d_m
-        vals[top, 2] = y_b
-        vals[top, 3] = d_b
+        stack[top, 0] = m
+        stack[top, 1] = b
+        stack[top, 2] = y_m
+        stack[top, 3] = d_m
+        stack[top, 4] = y_b
+        stack[top, 5] = d_b
         top += 1
-        stack_a[top] = a
-        stack_b[top] = m
-        vals[top, 0] = y_a
-        vals[top, 1] = d_a
-        vals[top, 2] = y_m
-        vals[top, 3] = d_m
+        stack[top, 0] = a
+        stack[top, 1] = m
+        stack[top, 2] = y_a
+        stack[top, 3] = d_a
+        stack[top, 4] = y_m
+        stack[top, 5] = d_m
         top += 1
     return ta, tb, 0, ya, dya, yb, dyb
 
 
-@njit(cache=True)
-def _first_zero(seg, sc, lo, hi, y_lo, dy_lo, y_hi, dy_hi, curvature, slope, tol, eta, etad):
+@njit(**LEAF)
+def _first_zero(seg, sc, lo, hi, y_lo, dy_lo, y_hi, dy_hi, curvature, slope, tol, eta, etad, stack):
     """The first zero of F in ``(lo, hi]`` (F(lo) > 0 >= F(hi), no zero before lo).
 
     ``(y_lo, dy_lo)``, ``(y_hi, dy_hi)`` are the observable at both ends (already
@@ -304,7 +308,22 @@ def _first_zero(seg, sc, lo, hi, y_lo, dy_lo, y_hi, dy_hi, curvature, slope, tol
         if _clear(sc, y_lo, dy_lo, y_r, dy_r, r_lo - lo, curvature, slope):
             return r_hi, True  # (_dip's own first test, without the call)
         a, b, kind, y_lo, dy_lo, y_hi, dy_hi = _dip(
-            seg, sc, lo, r_lo, y_lo, dy_lo, y_r, dy_r, curvature, slope, tol, False, 0.0, eta, etad
+            seg,
+            sc,
+            lo,
+            r_lo,
+            y_lo,
+            dy_lo,
+            y_r,
+            dy_r,
+            curvature,
+            slope,
+            tol,
+            False,
+            0.0,
+            eta,
+            etad,
+            stack,
         )
         if kind == 0:
             return r_hi, True
@@ -346,8 +365,8 @@ def _taylor_clear(seg, sc, y0, f0, d0, floor, t_max):
     return 0.0
 
 
-@njit(cache=True)
-def next_event(seg, sc, t_end, h, tol, eta, etad):
+@njit(**LEAF)
+def next_event(seg, sc, t_end, h, tol, eta, etad, stack):
     """First time ``t`` in ``(0, t_end]`` where the event function ``F`` reaches 0.
 
     ``F > 0`` just after the phase start (it may start at 0, right after an
@@ -410,12 +429,26 @@ def next_event(seg, sc, t_end, h, tol, eta, etad):
                     noise,
                     eta,
                     etad,
+                    stack,
                 )
             if kind == 3:
                 return t1, False
             if kind == 1 and lo > 0.0:
                 return _first_zero(
-                    seg, sc, lo, hi, y_lo, dy_lo, y_hi, dy_hi, curvature, slope, tol, eta, etad
+                    seg,
+                    sc,
+                    lo,
+                    hi,
+                    y_lo,
+                    dy_lo,
+                    y_hi,
+                    dy_hi,
+                    curvature,
+                    slope,
+                    tol,
+                    eta,
+                    etad,
+                    stack,
                 )
             if kind == 1:
                 t1 = hi
@@ -430,7 +463,7 @@ def next_event(seg, sc, t_end, h, tol, eta, etad):
                 fm, _ = _event_value(sc, ym, dym)
                 if fm > 0.0:
                     return _first_zero(
-                        seg, sc, tm, t1, ym, dym, y1, dy1, curvature, slope, tol, eta, etad
+                        seg, sc, tm, t1, ym, dym, y1, dy1, curvature, slope, tol, eta, etad, stack
                     )
             return tm, True
         ta = t1
@@ -458,17 +491,47 @@ def next_event(seg, sc, t_end, h, tol, eta, etad):
         yb, dyb = _observe(seg, sc, tb, eta, etad)
         fb, _ = _event_value(sc, yb, dyb)
         if fb <= 0.0:
-            return _first_zero(seg, sc, ta, tb, ya, dya, yb, dyb, curvature, slope, tol, eta, etad)
+            return _first_zero(
+                seg, sc, ta, tb, ya, dya, yb, dyb, curvature, slope, tol, eta, etad, stack
+            )
         # (the certificate first: the common case needs no call of _dip)
         if not certified and not _clear(sc, ya, dya, yb, dyb, tb - ta, curvature, slope):
             lo, hi, kind, y_lo, dy_lo, y_hi, dy_hi = _dip(
-                seg, sc, ta, tb, ya, dya, yb, dyb, curvature, slope, tol, False, 0.0, eta, etad
+                seg,
+                sc,
+                ta,
+                tb,
+                ya,
+                dya,
+                yb,
+                dyb,
+                curvature,
+                slope,
+                tol,
+                False,
+                0.0,
+                eta,
+                etad,
+                stack,
             )
             if kind == 2:  # the contact velocity touches zero: a stop if it can stick
                 return hi, True
             if kind == 1:
                 return _first_zero(
-                    seg, sc, lo, hi, y_lo, dy_lo, y_hi, dy_hi, curvature, slope, tol, eta, etad
+                    seg,
+                    sc,
+                    lo,
+                    hi,
+                    y_lo,
+                    dy_lo,
+                    y_hi,
+                    dy_hi,
+                    curvature,
+                    slope,
+                    tol,
+                    eta,
+                    etad,
+                    stack,
                 )
             if kind == 3:
                 return tb, False

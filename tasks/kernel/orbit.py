@@ -157,7 +157,7 @@ def records_hold(rec, nr, ctx, work):
     h_stick = ctx[CTX_H_STICK]
     tol = ctx[CTX_TOL]
     sc = ctx[CTX_SC]
-    eta, etad, eta_s, etad_s, q = work
+    eta, etad, eta_s, etad_s, q, _ = work
     x = np.empty(n)
     xd = np.empty(n)
     for j in range(nr - 1):

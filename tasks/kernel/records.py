@@ -79,7 +79,7 @@ def sample_states(ctx, work, rec, taus):
     out = np.empty((taus.shape[0], 2 * n))
     x = np.empty(n)
     xd = np.empty(n)
-    eta, etad, eta_s, etad_s, q = work
+    eta, etad, eta_s, etad_s, q, _ = work
     j = 0
     started = -1  # the phase (record row) whose start is set in seg, sc
     d0 = 0.0

@@ -255,7 +255,7 @@ def _follow_records(X, mode, rec, nr, ctx, work, theta, out, reach):
     sc = ctx[CTX_SC]
     beta = ctx[CTX_BETA]
     b = ctx[CTX_B]
-    eta, etad, eta_s, etad_s, q = work
+    eta, etad, eta_s, etad_s, q, _ = work
     phase = _phase_of(X, mode, b)
     if phase != int(rec[0, REC_MODE]):
         return False
