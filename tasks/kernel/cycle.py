@@ -274,16 +274,21 @@ def replay_cycles(x, xd, mode, theta, n_cycles, stats, ctx, work, rec, rec_n):
 def _advance(X, mode, stick_start, stats, ctx, work, tau_start, tau_end):
     """``X = (x, x')`` at ``tau_start`` -> state at ``tau_end``; returns the new state."""
     n = X.shape[0] // 2
-    x = X[:n].copy()
-    xd = X[n:].copy()
-    no_record = np.zeros((0, 1))
+    out = X.copy()  # advanced in place through its two halves (views)
     no_count = np.zeros(1, dtype=np.int64)
     mode, stick_start = run_cycle(
-        x, xd, mode, stick_start, stats, ctx, work, no_record, no_count, tau_start, tau_end
+        out[:n],
+        out[n:],
+        mode,
+        stick_start,
+        stats,
+        ctx,
+        work,
+        work[5][:0],
+        no_count,
+        tau_start,
+        tau_end,
     )
-    out = np.empty(2 * n)
-    out[:n] = x
-    out[n:] = xd
     return out, mode, stick_start
 
 

@@ -234,7 +234,7 @@ def _records_usable(rec, nr):
     return True
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def _follow_records(X, mode, rec, nr, ctx, work, theta, out, reach):
     """The period from a start near the recorded one, with the recorded event pattern.
 
@@ -259,8 +259,11 @@ def _follow_records(X, mode, rec, nr, ctx, work, theta, out, reach):
     phase = _phase_of(X, mode, b)
     if phase != int(rec[0, REC_MODE]):
         return False
-    x = X[:n].copy()
-    xd = X[n:].copy()
+    # the state is carried in ``out`` itself (views: nothing allocated)
+    x = out[:n]
+    xd = out[n:]
+    for i in range(2 * n):
+        out[i] = X[i]
     tau = theta
     tau_end = theta + TWO_PI
     v0 = _dot(b, xd)
@@ -330,8 +333,6 @@ def _follow_records(X, mode, rec, nr, ctx, work, theta, out, reach):
         tau += t
         phase = int(rec[j + 1, REC_MODE])
         v0 = 0.0
-    out[:n] = x
-    out[n:] = xd
     return True
 
 
