@@ -251,7 +251,7 @@ def _max_abs_diff(a, b):
     return acc
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def replay_cycles(x, xd, mode, theta, n_cycles, stats, ctx, work, rec, rec_n):
     """Run ``n_cycles`` excitation cycles from ``(x, x')`` (updated in place) at
     ``tau = theta``, recording every event in ``rec`` (:func:`run_cycle`).

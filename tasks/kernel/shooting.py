@@ -211,13 +211,9 @@ def _period_recorded(X, mode, stats, ctx, work, theta, rec, rec_n):
     recording its events in ``rec`` (:func:`replay_cycles`; the same period bit for
     bit). Returns the new section state and phase."""
     n = X.shape[0] // 2
-    x = X[:n].copy()
-    xd = X[n:].copy()
+    X1 = X.copy()  # advanced in place through its two halves (views)
     rec_n[0] = 0
-    m1, _ = replay_cycles(x, xd, mode, theta, 1, stats, ctx, work, rec, rec_n)
-    X1 = np.empty(2 * n)
-    X1[:n] = x
-    X1[n:] = xd
+    m1, _ = replay_cycles(X1[:n], X1[n:], mode, theta, 1, stats, ctx, work, rec, rec_n)
     return X1, m1
 
 
