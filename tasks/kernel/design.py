@@ -41,6 +41,7 @@ from tasks.kernel.layout import (
     CTX_W,
     DAMP,
     DAMPED,
+    LEAF,
     LOAD_COS,
     N_STATS,
     OMEGA,
@@ -87,7 +88,7 @@ DESIGN_SAMPLES = 32
 DESIGN_MAX_SAMPLES = 4096
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def _hermite_extremes(t0, t1, y0, y1, v0, v1, acc):
     """Fold the extrema of ``y`` on ``[t0, t1]`` into ``acc``.
 

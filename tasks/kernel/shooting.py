@@ -74,7 +74,7 @@ SETTLE_CYCLES = 150
 STABLE_RADIUS = 1.0 + 1e-6
 # Squarings of dP/dy the stability test tries before it computes the eigenvalues
 # (:func:`radius_within`).
-RADIUS_SQUARINGS = 6
+RADIUS_SQUARINGS = 10
 
 
 @njit(cache=True)
