@@ -83,11 +83,50 @@ def _broyden_update(J, dR, step):
     changed the residual by ``dR``: ``J += (dR - J s) s^T / (s . s)``."""
     ss = _dot(step, step)
     if ss > 0.0:
-        u = dR - J @ step
         dim = J.shape[0]
+        u = dR.copy()
+        for i in range(dim):
+            for k in range(dim):
+                u[i] -= J[i, k] * step[k]
         for i in range(dim):
             for k in range(dim):
                 J[i, k] += u[i] * step[k] / ss
+
+
+@njit(cache=True)
+def _solve(A, rhs):
+    """``x`` with ``A x = rhs``: Gaussian elimination with partial pivoting, for the
+    small dense systems of shooting (dimension 2 N at most), where LAPACK's call
+    (copies, workspace, its threads) costs more than the elimination. All NaN where
+    a pivot is 0 (``A`` singular: no isolated fixed point)."""
+    dim = A.shape[0]
+    M = A.copy()
+    x = rhs.copy()
+    for k in range(dim):
+        p = k
+        big = abs(M[k, k])
+        for i in range(k + 1, dim):
+            if abs(M[i, k]) > big:
+                big = abs(M[i, k])
+                p = i
+        if not big > 0.0:
+            x[:] = np.nan
+            return x
+        if p != k:
+            for j in range(dim):
+                M[k, j], M[p, j] = M[p, j], M[k, j]
+            x[k], x[p] = x[p], x[k]
+        for i in range(k + 1, dim):
+            f = M[i, k] / M[k, k]
+            for j in range(k + 1, dim):
+                M[i, j] -= f * M[k, j]
+            x[i] -= f * x[k]
+    for k in range(dim - 1, -1, -1):
+        acc = x[k]
+        for j in range(k + 1, dim):
+            acc -= M[k, j] * x[j]
+        x[k] = acc / M[k, k]
+    return x
 
 
 @njit(**LEAF)
@@ -405,10 +444,7 @@ def _follow_newton(y0, R0, J, mode, rec, nr, ctx, work, theta, target, scale):
     Pf = np.empty(2 * n)
     moved = False
     for _ in range(FOLLOW_NEWTON):
-        try:
-            step = np.linalg.solve(J, -Rf)
-        except Exception:  # singular
-            break
+        step = _solve(J, -Rf)  # (NaN where J is singular)
         if not np.all(np.isfinite(step)) or _max_abs(step) > 10.0 * scale:
             break
         # a step that does not reduce the residual is halved (a damped Newton step
@@ -538,10 +574,7 @@ def _shoot(X0, mode, stats, ctx, work, rtol, floor, max_newton, theta, keep, kep
                         rec_n, rec_tn = rec_tn, rec_n
                         fresh = False
                         continue
-        try:
-            step = np.linalg.solve(J, -R)
-        except Exception:  # singular: no isolated fixed point (e.g. resonance)
-            return False, X0, cycles
+        step = _solve(J, -R)  # (NaN where J is singular: no isolated fixed point)
         # trust region: a fixed point far beyond the current motion is not a
         # settled transient but a (near-)singular map, e.g. resonant growth
         if not np.all(np.isfinite(step)) or _max_abs(step) > 10.0 * scale:
@@ -634,10 +667,7 @@ def newton_settle(X0, mode, stats, ctx, work, rtol, floor, max_iter, theta):
                 return False, X, cycles
             _cycle(X, _phase_of(X, mode, b), theta, stats, ctx, work, theta)
             return True, X, cycles + 1
-        try:
-            step = np.linalg.solve(J, -R)
-        except Exception:  # singular: no isolated fixed point
-            return False, X, cycles
+        step = _solve(J, -R)  # (NaN where J is singular: no isolated fixed point)
         if not np.all(np.isfinite(step)) or _max_abs(step) > 100.0 * max(scale, floor):
             return False, X, cycles
         y = y + step
