@@ -13,6 +13,7 @@ import math
 import numpy as np
 from numba import njit
 
+from tasks.kernel.events import DIP_STACK
 from tasks.kernel.layout import (
     ALPHA,
     DAMP,
@@ -175,7 +176,14 @@ def _context(r, beta, scene, settings):
         max_work,
         g_c * r,
     )
-    work = (np.zeros(n), np.zeros(n), np.zeros(m), np.zeros(m), np.zeros(2 * m))
+    work = (
+        np.zeros(n),
+        np.zeros(n),
+        np.zeros(m),
+        np.zeros(m),
+        np.zeros(2 * m),
+        np.empty((DIP_STACK, 6)),
+    )
     # Held start: contact at d0 = 0, the rest on the forced response of the
     # held system at tau = 0 (from rest if the held system is resonant).
     X_held, held_exists = _held_response(seg_stick, phi_s, T, n)

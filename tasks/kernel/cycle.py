@@ -27,6 +27,7 @@ from tasks.kernel.layout import (
     EV_STOP,
     EV_UNSTICK,
     EVALS,
+    LEAF,
     N_STATS,
     REC_G,
     REC_KIND,
@@ -62,7 +63,7 @@ from tasks.regimes import EVENT_LIMIT, NUMERICAL_FAILURE, WORK_LIMIT
 EVENT_WORK = 4.0
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def _record(rec, rec_n, tau, kind, mode, g, x, xd):
     """Append one event to the record buffer (if there is room)."""
     k = rec_n[0]
@@ -79,7 +80,7 @@ def _record(rec, rec_n, tau, kind, mode, g, x, xd):
     rec_n[0] = k + 1
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def run_cycle(x, xd, mode, stick_start, stats, ctx, work, rec, rec_n, tau_start, tau_end):
     """Advance ``(x, x', mode)`` from ``tau_start`` to ``tau_end`` (one period, or part).
 
@@ -123,7 +124,7 @@ def run_cycle(x, xd, mode, stick_start, stats, ctx, work, rec, rec_n, tau_start,
         max_work,
         g_c,
     ) = ctx
-    eta, etad, eta_s, etad_s, q = work
+    eta, etad, eta_s, etad_s, q, stack = work
     for i in range(N_STATS):
         stats[i] = 0.0
     d = _dot(b, x)
@@ -162,7 +163,7 @@ def run_cycle(x, xd, mode, stick_start, stats, ctx, work, rec, rec_n, tau_start,
                 stats[ST_FOREVER] = 1.0
                 t, found = remaining, False
             else:
-                t, found = next_event(seg_stick, sc, remaining, h_stick, tol, eta_s, etad_s)
+                t, found = next_event(seg_stick, sc, remaining, h_stick, tol, eta_s, etad_s, stack)
             g, _ = evaluate(seg_stick, sc, t, eta_s, etad_s)
             _stick_state(phi_s, T, w, d0, eta_s, etad_s, q, x, xd, seg_stick[ETAD_OFF])
             stats[ST_STUCK_TIME] += t
@@ -179,7 +180,7 @@ def run_cycle(x, xd, mode, stick_start, stats, ctx, work, rec, rec_n, tau_start,
         else:
             s = float(mode)
             _start_slip(seg_slip, sc, x, xd, tau, s, v0, beta, f_r2, phi_t_gamma)
-            t, found = next_event(seg_slip, sc, remaining, h_slip, tol, eta, etad)
+            t, found = next_event(seg_slip, sc, remaining, h_slip, tol, eta, etad, stack)
             evaluate(seg_slip, sc, t, eta, etad)
             _slip_state(phi, eta, etad, x, xd, seg_slip[ETAD_OFF])
             if t > stats[ST_LONGEST]:
@@ -230,7 +231,7 @@ def run_cycle(x, xd, mode, stick_start, stats, ctx, work, rec, rec_n, tau_start,
     return mode, stick_start
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def _max_abs(v):
     acc = 0.0
     for i in range(v.shape[0]):
@@ -240,7 +241,7 @@ def _max_abs(v):
     return acc
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def _max_abs_diff(a, b):
     acc = 0.0
     for i in range(a.shape[0]):
@@ -250,7 +251,7 @@ def _max_abs_diff(a, b):
     return acc
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def replay_cycles(x, xd, mode, theta, n_cycles, stats, ctx, work, rec, rec_n):
     """Run ``n_cycles`` excitation cycles from ``(x, x')`` (updated in place) at
     ``tau = theta``, recording every event in ``rec`` (:func:`run_cycle`).
@@ -273,16 +274,21 @@ def replay_cycles(x, xd, mode, theta, n_cycles, stats, ctx, work, rec, rec_n):
 def _advance(X, mode, stick_start, stats, ctx, work, tau_start, tau_end):
     """``X = (x, x')`` at ``tau_start`` -> state at ``tau_end``; returns the new state."""
     n = X.shape[0] // 2
-    x = X[:n].copy()
-    xd = X[n:].copy()
-    no_record = np.zeros((0, 1))
+    out = X.copy()  # advanced in place through its two halves (views)
     no_count = np.zeros(1, dtype=np.int64)
     mode, stick_start = run_cycle(
-        x, xd, mode, stick_start, stats, ctx, work, no_record, no_count, tau_start, tau_end
+        out[:n],
+        out[n:],
+        mode,
+        stick_start,
+        stats,
+        ctx,
+        work,
+        work[5][:0],
+        no_count,
+        tau_start,
+        tau_end,
     )
-    out = np.empty(2 * n)
-    out[:n] = x
-    out[n:] = xd
     return out, mode, stick_start
 
 

@@ -42,6 +42,7 @@ from tasks.kernel.layout import (
     DELTA,
     ETA0,
     ETAD0,
+    LEAF,
     LOAD_CONST,
     LOAD_COS,
     OBS0,
@@ -51,7 +52,7 @@ from tasks.kernel.layout import (
 )
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def is_damped(seg):
     """True when some mode of the phase has damping (row DAMP)."""
     for k in range(seg.shape[1]):
@@ -60,7 +61,7 @@ def is_damped(seg):
     return False
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def particular(w, sigma, a):
     """``(P, Q)`` of Eq. (4.2): the harmonic steady state ``P cos tau + Q sin tau``."""
     den = (w * w - 1.0) ** 2 + 4.0 * sigma * sigma
@@ -69,7 +70,7 @@ def particular(w, sigma, a):
     return a * (w * w - 1.0) / den, 2.0 * sigma * a / den
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def mode_split(seg, k, ct0, st0):
     """Mode k of a phase split as in Eq. 4.2-4.3: ``(w, sigma, static, P, Q, e, v)``,
     the static part ``c / Omega^2``, the harmonic part ``(P, Q)`` and the free initial
@@ -84,7 +85,7 @@ def mode_split(seg, k, ct0, st0):
     return w, sigma, static, P, Q, e, v
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def free_factors(w, sigma, t):
     """``(E C1 - 1, E S1)`` of Eq. (4.3) at ``t >= 0``, accurate for small t."""
     mu2 = w * w - sigma * sigma
@@ -104,7 +105,7 @@ def free_factors(w, sigma, t):
     return math.expm1(-sigma * t), math.exp(-sigma * t) * t
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def free_derivative_bounds(w, sigma, f0, f1):
     """Bounds, for all t >= 0, of ``|f'|``, ``|f''|`` and ``|f'''|`` of the free solution
     of Eq. 4.1 that starts at ``(f0, f1)``: ``hypot(f^(k+1)(0), Omega f^(k)(0))`` (Eq. 4.4)."""
@@ -113,7 +114,7 @@ def free_derivative_bounds(w, sigma, f0, f1):
     return math.hypot(f1, w * f0), math.hypot(f2, w * f1), math.hypot(f3, w * f2)
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def evaluate_damped(seg, sc, t, eta, etad):
     """:func:`tasks.kernel.propagation.evaluate` for damped modes (Eqs. 4.1-4.3)."""
     m = seg.shape[1]
@@ -150,7 +151,7 @@ def evaluate_damped(seg, sc, t, eta, etad):
     return y, dy
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def derivative_bounds_damped(seg, sc, t_end):
     """:func:`tasks.kernel.propagation.derivative_bounds` for damped modes.
 
@@ -193,7 +194,7 @@ def derivative_bounds_damped(seg, sc, t_end):
     return d1, d2
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def stick_force_bound_damped(seg, sc):
     """The largest ``|g|`` a damped stick phase can ever reach (docs/structures.md 4.3):
     ``|G0| + hypot(Hc, Hs) + sum_k (|alpha_k| / Omega_k + |delta_k|) sqrt(2 E_k)``,

@@ -41,6 +41,7 @@ from tasks.kernel.layout import (
     CTX_W,
     DAMP,
     DAMPED,
+    LEAF,
     LOAD_COS,
     N_STATS,
     OMEGA,
@@ -87,7 +88,7 @@ DESIGN_SAMPLES = 32
 DESIGN_MAX_SAMPLES = 4096
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def _hermite_extremes(t0, t1, y0, y1, v0, v1, acc):
     """Fold the extrema of ``y`` on ``[t0, t1]`` into ``acc``.
 
@@ -323,7 +324,7 @@ def orbit_design_recorded(r, beta, scene, settings, state, period, samples, dout
     elif damped:  # stuck the whole (converged) orbit: G0 + Hc cos + Hs sin, no free part left
         x = state[:n].copy()
         xd = state[n : 2 * n].copy()
-        eta, etad, eta_s, etad_s, q = work
+        eta, etad, eta_s, etad_s, q, _ = work
         _start_stick(
             ctx[CTX_SEG_STICK],
             ctx[CTX_SC],

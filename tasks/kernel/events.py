@@ -31,6 +31,7 @@ from tasks.kernel.layout import (
     KIND,
     KIND_SLIP,
     KIND_STICK,
+    LEAF,
     LOAD_CONST,
     LOAD_COS,
     OBS0,
@@ -42,8 +43,12 @@ from tasks.kernel.layout import (
 )
 from tasks.kernel.propagation import derivative_bounds, evaluate, start_taylor
 
+# Rows of the bisection stack of :func:`_dip` (``work[5]`` of a point's context):
+# brackets still to search, at most one per halving level.
+DIP_STACK = 128
 
-@njit(cache=True)
+
+@njit(**LEAF)
 def _no_zero_between(fa, da, fb, db, h, curvature, slope=np.inf):
     """Certificate that F > 0 on ``(a, a + h)`` from its values and slopes at both
     ends, ``|F''| <= curvature`` and ``|F'| <= slope``: the lower bounds
@@ -63,7 +68,7 @@ def _no_zero_between(fa, da, fb, db, h, curvature, slope=np.inf):
     return ua + wb >= h
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def stick_force_bound(seg, sc):
     """``|G0| + |H| + sum_k |alpha_k| A_free,k``: the largest ``|g|`` a stick phase
     can ever reach (the bound of :func:`never_unsticks`; tight when the free
@@ -92,7 +97,7 @@ def stick_force_bound(seg, sc):
     return abs(const) + abs(harmonic) + free_sum
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def never_unsticks(seg, sc):
     """Certificate that a stick phase lasts for ever (docs/theory.md 4.2, held contact).
 
@@ -106,7 +111,7 @@ def never_unsticks(seg, sc):
     return math.isfinite(total) and total <= sc[BETA] * (1.0 + 1e-12)
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def _solve_bracket(seg, sc, lo, hi, f_lo, d_lo, y_lo, dy_lo, f_hi, d_hi, tol, eta, etad):
     """Safeguarded Newton on F in a sign-changing bracket, to ``hi - lo <= tol``.
 
@@ -156,14 +161,14 @@ def _solve_bracket(seg, sc, lo, hi, f_lo, d_lo, y_lo, dy_lo, f_hi, d_hi, tol, et
     return lo, hi, y_lo, dy_lo
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def _observe(seg, sc, t, eta, etad):
     """``(y, y')`` of the phase's observable at t, counting the work in ``sc[EVALS]``."""
     sc[EVALS] += 1.0 + seg.shape[1]
     return evaluate(seg, sc, t, eta, etad)
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def _event_value(sc, y, dy):
     """``(F, F')`` from the observable: ``s y`` sliding, ``beta - |y|`` stuck."""
     if sc[KIND] == KIND_SLIP:
@@ -173,7 +178,7 @@ def _event_value(sc, y, dy):
     return sc[BETA] + y, dy
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def _clear(sc, ya, dya, yb, dyb, h, curvature, slope):
     """Certificate that the event function stays positive on ``(a, a + h)``.
 
@@ -191,7 +196,7 @@ def _clear(sc, ya, dya, yb, dyb, h, curvature, slope):
     ) and _no_zero_between(beta + ya, dya, beta + yb, dyb, h, curvature, slope)
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def _clear_ahead(sc, y, dy, curvature):
     """How far ahead of a point the event function provably stays positive:
     ``u`` with ``F + F' u - curvature u^2 / 2 > 0`` before it, on ``F = s y``
@@ -206,13 +211,15 @@ def _clear_ahead(sc, y, dy, curvature):
     return min(up, down)
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def _out_of_work(sc):
     return sc[EVALS] > sc[WORK_CAP]
 
 
-@njit(cache=True)
-def _dip(seg, sc, ta, tb, ya, dya, yb, dyb, curvature, slope, tol, skip_graze, floor, eta, etad):
+@njit(**LEAF)
+def _dip(
+    seg, sc, ta, tb, ya, dya, yb, dyb, curvature, slope, tol, skip_graze, floor, eta, etad, stack
+):
     """Search ``(ta, tb)`` (F > 0 at both ends) for the first point where F <= 0.
 
     Bisects the parts of the bracket the certificate (:func:`_clear`) cannot
@@ -229,29 +236,27 @@ def _dip(seg, sc, ta, tb, ya, dya, yb, dyb, curvature, slope, tol, skip_graze, f
     """
     if _clear(sc, ya, dya, yb, dyb, tb - ta, curvature, slope):
         return ta, tb, 0, ya, dya, yb, dyb  # the common case: no stack needed
-    stack_a = np.empty(128)
-    stack_b = np.empty(128)
-    vals = np.empty((128, 4))
-    stack_a[0] = ta
-    stack_b[0] = tb
-    vals[0, 0] = ya
-    vals[0, 1] = dya
-    vals[0, 2] = yb
-    vals[0, 3] = dyb
+    # the brackets still to search: rows (a, b, y(a), y'(a), y(b), y'(b))
+    stack[0, 0] = ta
+    stack[0, 1] = tb
+    stack[0, 2] = ya
+    stack[0, 3] = dya
+    stack[0, 4] = yb
+    stack[0, 5] = dyb
     top = 1
     skip = skip_graze or sc[KIND] == KIND_STICK
     while top > 0:
         top -= 1
-        a = stack_a[top]
-        b = stack_b[top]
-        y_a = vals[top, 0]
-        d_a = vals[top, 1]
-        y_b = vals[top, 2]
-        d_b = vals[top, 3]
+        a = stack[top, 0]
+        b = stack[top, 1]
+        y_a = stack[top, 2]
+        d_a = stack[top, 3]
+        y_b = stack[top, 4]
+        d_b = stack[top, 5]
         if _clear(sc, y_a, d_a, y_b, d_b, b - a, curvature, slope):
             continue
         m = 0.5 * (a + b)
-        if b - a <= tol or not (a < m < b) or top >= 126:
+        if b - a <= tol or not (a < m < b) or top >= DIP_STACK - 2:
             if skip:
                 continue
             return a, m, 2, y_a, d_a, np.nan, np.nan
@@ -262,25 +267,25 @@ def _dip(seg, sc, ta, tb, ya, dya, yb, dyb, curvature, slope, tol, skip_graze, f
         if f_m <= -floor:
             return a, m, 1, y_a, d_a, y_m, d_m
         # right half first on the stack, so the left half is searched first
-        stack_a[top] = m
-        stack_b[top] = b
-        vals[top, 0] = y_m
-        vals[top, 1] = d_m
-        vals[top, 2] = y_b
-        vals[top, 3] = d_b
+        stack[top, 0] = m
+        stack[top, 1] = b
+        stack[top, 2] = y_m
+        stack[top, 3] = d_m
+        stack[top, 4] = y_b
+        stack[top, 5] = d_b
         top += 1
-        stack_a[top] = a
-        stack_b[top] = m
-        vals[top, 0] = y_a
-        vals[top, 1] = d_a
-        vals[top, 2] = y_m
-        vals[top, 3] = d_m
+        stack[top, 0] = a
+        stack[top, 1] = m
+        stack[top, 2] = y_a
+        stack[top, 3] = d_a
+        stack[top, 4] = y_m
+        stack[top, 5] = d_m
         top += 1
     return ta, tb, 0, ya, dya, yb, dyb
 
 
-@njit(cache=True)
-def _first_zero(seg, sc, lo, hi, y_lo, dy_lo, y_hi, dy_hi, curvature, slope, tol, eta, etad):
+@njit(**LEAF)
+def _first_zero(seg, sc, lo, hi, y_lo, dy_lo, y_hi, dy_hi, curvature, slope, tol, eta, etad, stack):
     """The first zero of F in ``(lo, hi]`` (F(lo) > 0 >= F(hi), no zero before lo).
 
     ``(y_lo, dy_lo)``, ``(y_hi, dy_hi)`` are the observable at both ends (already
@@ -300,8 +305,25 @@ def _first_zero(seg, sc, lo, hi, y_lo, dy_lo, y_hi, dy_hi, curvature, slope, tol
         )
         if r_lo <= lo:
             return r_hi, True
+        if _clear(sc, y_lo, dy_lo, y_r, dy_r, r_lo - lo, curvature, slope):
+            return r_hi, True  # (_dip's own first test, without the call)
         a, b, kind, y_lo, dy_lo, y_hi, dy_hi = _dip(
-            seg, sc, lo, r_lo, y_lo, dy_lo, y_r, dy_r, curvature, slope, tol, False, 0.0, eta, etad
+            seg,
+            sc,
+            lo,
+            r_lo,
+            y_lo,
+            dy_lo,
+            y_r,
+            dy_r,
+            curvature,
+            slope,
+            tol,
+            False,
+            0.0,
+            eta,
+            etad,
+            stack,
         )
         if kind == 0:
             return r_hi, True
@@ -313,7 +335,7 @@ def _first_zero(seg, sc, lo, hi, y_lo, dy_lo, y_hi, dy_hi, curvature, slope, tol
         hi = b
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def _taylor_clear(seg, sc, y0, f0, d0, floor, t_max):
     """Length ``T <= t_max`` of the start ``(0, T]`` of a phase proved to keep
     ``F > -floor`` by the Taylor bound ``F(t) >= F(0) + F'(0) t + F''(0) t^2 / 2 -
@@ -343,8 +365,8 @@ def _taylor_clear(seg, sc, y0, f0, d0, floor, t_max):
     return 0.0
 
 
-@njit(cache=True)
-def next_event(seg, sc, t_end, h, tol, eta, etad):
+@njit(**LEAF)
+def next_event(seg, sc, t_end, h, tol, eta, etad, stack):
     """First time ``t`` in ``(0, t_end]`` where the event function ``F`` reaches 0.
 
     ``F > 0`` just after the phase start (it may start at 0, right after an
@@ -407,12 +429,26 @@ def next_event(seg, sc, t_end, h, tol, eta, etad):
                     noise,
                     eta,
                     etad,
+                    stack,
                 )
             if kind == 3:
                 return t1, False
             if kind == 1 and lo > 0.0:
                 return _first_zero(
-                    seg, sc, lo, hi, y_lo, dy_lo, y_hi, dy_hi, curvature, slope, tol, eta, etad
+                    seg,
+                    sc,
+                    lo,
+                    hi,
+                    y_lo,
+                    dy_lo,
+                    y_hi,
+                    dy_hi,
+                    curvature,
+                    slope,
+                    tol,
+                    eta,
+                    etad,
+                    stack,
                 )
             if kind == 1:
                 t1 = hi
@@ -427,7 +463,7 @@ def next_event(seg, sc, t_end, h, tol, eta, etad):
                 fm, _ = _event_value(sc, ym, dym)
                 if fm > 0.0:
                     return _first_zero(
-                        seg, sc, tm, t1, ym, dym, y1, dy1, curvature, slope, tol, eta, etad
+                        seg, sc, tm, t1, ym, dym, y1, dy1, curvature, slope, tol, eta, etad, stack
                     )
             return tm, True
         ta = t1
@@ -455,16 +491,47 @@ def next_event(seg, sc, t_end, h, tol, eta, etad):
         yb, dyb = _observe(seg, sc, tb, eta, etad)
         fb, _ = _event_value(sc, yb, dyb)
         if fb <= 0.0:
-            return _first_zero(seg, sc, ta, tb, ya, dya, yb, dyb, curvature, slope, tol, eta, etad)
-        if not certified:
+            return _first_zero(
+                seg, sc, ta, tb, ya, dya, yb, dyb, curvature, slope, tol, eta, etad, stack
+            )
+        # (the certificate first: the common case needs no call of _dip)
+        if not certified and not _clear(sc, ya, dya, yb, dyb, tb - ta, curvature, slope):
             lo, hi, kind, y_lo, dy_lo, y_hi, dy_hi = _dip(
-                seg, sc, ta, tb, ya, dya, yb, dyb, curvature, slope, tol, False, 0.0, eta, etad
+                seg,
+                sc,
+                ta,
+                tb,
+                ya,
+                dya,
+                yb,
+                dyb,
+                curvature,
+                slope,
+                tol,
+                False,
+                0.0,
+                eta,
+                etad,
+                stack,
             )
             if kind == 2:  # the contact velocity touches zero: a stop if it can stick
                 return hi, True
             if kind == 1:
                 return _first_zero(
-                    seg, sc, lo, hi, y_lo, dy_lo, y_hi, dy_hi, curvature, slope, tol, eta, etad
+                    seg,
+                    sc,
+                    lo,
+                    hi,
+                    y_lo,
+                    dy_lo,
+                    y_hi,
+                    dy_hi,
+                    curvature,
+                    slope,
+                    tol,
+                    eta,
+                    etad,
+                    stack,
                 )
             if kind == 3:
                 return tb, False

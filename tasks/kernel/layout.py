@@ -8,6 +8,13 @@ from __future__ import annotations
 
 import math
 
+#: numba options of the kernel's leaf functions (they allocate and return no array):
+#: compiled without numba's reference counting (``_nrt=False``), so a call that
+#: passes arrays costs no atomic reference-count operations (two per array and
+#: call otherwise, which cost as much as evaluating a phase). The same operations,
+#: so the same values to the last bit; a leaf that allocated would not compile.
+LEAF = {"cache": True, "_nrt": False}
+
 #: One excitation period (the excitation is ``cos(tau)``).
 TWO_PI = 2.0 * math.pi
 

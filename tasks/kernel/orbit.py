@@ -36,6 +36,7 @@ from tasks.kernel.layout import (
     EVALS,
     KIND,
     KIND_STICK,
+    LEAF,
     N_STATS,
     OUT_CONVERGED,
     OUT_CYCLES,
@@ -63,8 +64,8 @@ ORBIT_SAMPLES = 8.0
 ORBIT_MAX_SAMPLES = 4096.0
 
 
-@njit(cache=True)
-def _phase_holds(seg, sc, t_len, h, tol):
+@njit(**LEAF)
+def _phase_holds(seg, sc, t_len, h, tol, eta, etad):
     """The invariant through one phase of length ``t_len`` (start already set in ``seg, sc``).
 
     Samples the observable at spacing at most ``h / ORBIT_SAMPLES`` (at most
@@ -72,11 +73,10 @@ def _phase_holds(seg, sc, t_len, h, tol):
     ``|g| <= beta (1 + ORBIT_RTOL) + tol max|g'|`` (the second term is what an
     event located to ``tol`` can leave). Sliding: the contact velocity keeps the
     phase's sign, ``s v >= -1e-9 max|v|``. Returns 1 (holds), 0 (violated) or -1
-    (the work budget ran out first).
+    (the work budget ran out first). ``eta, etad`` are scratch arrays of the
+    phase's modes.
     """
     m = seg.shape[1]
-    eta = np.empty(m)
-    etad = np.empty(m)
     n_samples = int(min(max(2.0, ORBIT_SAMPLES * t_len / h), ORBIT_MAX_SAMPLES))
     if sc[EVALS] + n_samples * (1.0 + m) > sc[WORK_CAP]:
         return -1
@@ -157,7 +157,7 @@ def records_hold(rec, nr, ctx, work):
     h_stick = ctx[CTX_H_STICK]
     tol = ctx[CTX_TOL]
     sc = ctx[CTX_SC]
-    eta, etad, eta_s, etad_s, q = work
+    eta, etad, eta_s, etad_s, q, _ = work
     x = np.empty(n)
     xd = np.empty(n)
     for j in range(nr - 1):
@@ -187,7 +187,7 @@ def records_hold(rec, nr, ctx, work):
                 ctx[CTX_G_D0],
                 q,
             )
-            ok = _phase_holds(seg, sc, t_len, h_stick, tol)
+            ok = _phase_holds(seg, sc, t_len, h_stick, tol, eta_s, etad_s)
         else:
             seg = ctx[CTX_SEG_SLIP]
             # the contact velocity at a section start; 0 at an event, as in run_cycle
@@ -195,7 +195,7 @@ def records_hold(rec, nr, ctx, work):
             _start_slip(
                 seg, sc, x, xd, tau0, float(phase), v0, beta, ctx[CTX_F_R2], ctx[CTX_PHI_T_GAMMA]
             )
-            ok = _phase_holds(seg, sc, t_len, h_slip, tol)
+            ok = _phase_holds(seg, sc, t_len, h_slip, tol, eta, etad)
         if ok != 1:
             return ok
     return 1

@@ -13,6 +13,10 @@ The motion alternates between two linear systems (:mod:`tasks.model`):
 modal coordinates of the phase (the ``seg, sc`` arrays of
 :mod:`tasks.kernel.layout`); :func:`_slip_state` and :func:`_stick_state` map the
 modal state back.
+
+They run once or more per phase and allocate nothing, so they are compiled as
+leaves (``tasks.kernel.layout.LEAF``: no reference counting of the arrays they
+are passed).
 """
 
 from __future__ import annotations
@@ -33,6 +37,7 @@ from tasks.kernel.layout import (
     KIND,
     KIND_SLIP,
     KIND_STICK,
+    LEAF,
     LOAD_CONST,
     OBS0,
     OBS_COS,
@@ -47,7 +52,7 @@ from tasks.kernel.layout import (
 STICK_RTOL = 1e-12
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def _matvec(a, x, out):
     for i in range(a.shape[0]):
         acc = 0.0
@@ -56,7 +61,7 @@ def _matvec(a, x, out):
         out[i] = acc
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def _dot(a, b):
     acc = 0.0
     for i in range(a.shape[0]):
@@ -64,7 +69,7 @@ def _dot(a, b):
     return acc
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def _contact_force(p, ctau, K, x, g_load):
     """g = g_load . (p cos tau - K x): the force the contact must transmit."""
     acc = 0.0
@@ -77,7 +82,7 @@ def _contact_force(p, ctau, K, x, g_load):
     return acc
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def _to_pairs(L, x, xd, seg, offset_unit, load_unit, scale):
     """General damping: ``(eta, xi) = L (x, x')``, ``eta' = xi + o`` with
     ``o = scale offset_unit`` and the constant load ``scale load_unit``
@@ -97,7 +102,7 @@ def _to_pairs(L, x, xd, seg, offset_unit, load_unit, scale):
         seg[LOAD_CONST, k] = scale * load_unit[k]
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def _from_pairs(V, eta, etad, off, x, xd):
     """General damping: ``(x, x') = V (eta, eta' - o)``."""
     n = x.shape[0]
@@ -112,7 +117,7 @@ def _from_pairs(V, eta, etad, off, x, xd):
         xd[i] = accd
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def _start_slip(seg, sc, x, xd, tau, s, v0, beta, f_r2, phi_t_gamma):
     n = x.shape[0]
     if phi_t_gamma.shape[0] == n:
@@ -132,7 +137,7 @@ def _start_slip(seg, sc, x, xd, tau, s, v0, beta, f_r2, phi_t_gamma):
     sc[BETA] = beta
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def _start_stick(seg, sc, x, xd, tau, beta, b, w, proj, phi_s_t_gamma_s, dstat_r2, g_cos, g_d0, q):
     """Freeze the contact at d0 = b . x; returns d0."""
     n = x.shape[0]
@@ -181,7 +186,7 @@ def _start_stick(seg, sc, x, xd, tau, beta, b, w, proj, phi_s_t_gamma_s, dstat_r
     return d0
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def _slip_state(phi, eta, etad, x, xd, off):
     """``(x, x')`` of the slip phase's modal state (``off``: row ETAD_OFF, general
     damping only)."""
@@ -192,7 +197,7 @@ def _slip_state(phi, eta, etad, x, xd, off):
     _matvec(phi, etad, xd)
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def _stick_state(phi_s, T, w, d0, eta, etad, q, x, xd, off):
     """``(x, x')`` of the stick phase's modal state (``off``: row ETAD_OFF, general
     damping only)."""

@@ -49,6 +49,7 @@ from tasks.kernel.layout import (
     EVALS,
     KIND,
     KIND_SLIP,
+    LEAF,
     LOAD_CONST,
     LOAD_COS,
     OBS0,
@@ -59,7 +60,7 @@ from tasks.kernel.layout import (
 )
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def sin_over(e: float, u: float) -> float:
     """``sin(e u) / e``, exact as e -> 0 (limit u)."""
     x = e * u
@@ -69,7 +70,7 @@ def sin_over(e: float, u: float) -> float:
     return math.sin(x) / e
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def evaluate(seg, sc, t, eta, etad):
     """State and observable of a phase at time ``t`` after its start.
 
@@ -132,7 +133,7 @@ def evaluate(seg, sc, t, eta, etad):
     return y, dy
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def event_function(seg, sc, t, eta, etad):
     """``(F, F')`` at t: ``s y`` while sliding, ``beta - |y|`` while stuck.
 
@@ -146,7 +147,7 @@ def event_function(seg, sc, t, eta, etad):
     return sc[BETA] + y, dy
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def derivative_bounds(seg, sc, t_end):
     """Upper bounds of ``|y'|`` and ``|y''|`` over ``[0, t_end]`` of a phase.
 
@@ -208,7 +209,7 @@ def derivative_bounds(seg, sc, t_end):
     return d1, d2
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def start_taylor(seg, sc, t_end):
     """``y''(0)`` and a bound of ``|y'''|`` over ``[0, t_end]`` of a phase's observable.
 

@@ -70,59 +70,68 @@ def trace_cycles(r, beta, scene, settings, X0, mode0, theta, n_cycles, max_recor
 
 @njit(cache=True)
 def sample_states(ctx, work, rec, taus):
-    """States ``(x, x')`` at the absolute times ``taus`` (ascending) from the records."""
+    """States ``(x, x')`` at the absolute times ``taus`` (ascending) from the records.
+
+    Each phase's recorded start is projected onto its modal coordinates once, for
+    all the times that fall in it (the same values as projecting it per time)."""
     n = (rec.shape[1] - REC_X) // 2
     beta = ctx[CTX_BETA]
     out = np.empty((taus.shape[0], 2 * n))
     x = np.empty(n)
     xd = np.empty(n)
+    eta, etad, eta_s, etad_s, q, _ = work
     j = 0
+    started = -1  # the phase (record row) whose start is set in seg, sc
+    d0 = 0.0
     for i in range(taus.shape[0]):
         tau = taus[i]
         while j + 1 < rec.shape[0] - 1 and rec[j + 1, REC_TAU] <= tau:
             j += 1
         tau0 = rec[j, REC_TAU]
         mode = int(rec[j, REC_MODE])
-        for k in range(n):
-            x[k] = rec[j, REC_X + k]
-            xd[k] = rec[j, REC_X + n + k]
-        eta, etad, eta_s, etad_s, q = work
+        if j != started:  # a new phase: project its recorded start once
+            started = j
+            for k in range(n):
+                x[k] = rec[j, REC_X + k]
+                xd[k] = rec[j, REC_X + n + k]
+            if mode == 0:
+                d0 = _start_stick(
+                    ctx[CTX_SEG_STICK],
+                    ctx[CTX_SC],
+                    x,
+                    xd,
+                    tau0,
+                    beta,
+                    ctx[CTX_B],
+                    ctx[CTX_W],
+                    ctx[CTX_PROJ],
+                    ctx[CTX_PHI_S_T_GAMMA_S],
+                    ctx[CTX_DSTAT_R2],
+                    ctx[CTX_G_COS],
+                    ctx[CTX_G_D0],
+                    q,
+                )
+            else:
+                _start_slip(
+                    ctx[CTX_SEG_SLIP],
+                    ctx[CTX_SC],
+                    x,
+                    xd,
+                    tau0,
+                    float(mode),
+                    0.0,
+                    beta,
+                    ctx[CTX_F_R2],
+                    ctx[CTX_PHI_T_GAMMA],
+                )
         if mode == 0:
             seg = ctx[CTX_SEG_STICK]
-            d0 = _start_stick(
-                seg,
-                ctx[CTX_SC],
-                x,
-                xd,
-                tau0,
-                beta,
-                ctx[CTX_B],
-                ctx[CTX_W],
-                ctx[CTX_PROJ],
-                ctx[CTX_PHI_S_T_GAMMA_S],
-                ctx[CTX_DSTAT_R2],
-                ctx[CTX_G_COS],
-                ctx[CTX_G_D0],
-                q,
-            )
             evaluate(seg, ctx[CTX_SC], tau - tau0, eta_s, etad_s)
             _stick_state(
                 ctx[CTX_PHI_S], ctx[CTX_T], ctx[CTX_W], d0, eta_s, etad_s, q, x, xd, seg[ETAD_OFF]
             )
         else:
             seg = ctx[CTX_SEG_SLIP]
-            _start_slip(
-                seg,
-                ctx[CTX_SC],
-                x,
-                xd,
-                tau0,
-                float(mode),
-                0.0,
-                beta,
-                ctx[CTX_F_R2],
-                ctx[CTX_PHI_T_GAMMA],
-            )
             evaluate(seg, ctx[CTX_SC], tau - tau0, eta, etad)
             _slip_state(ctx[CTX_PHI], eta, etad, x, xd, seg[ETAD_OFF])
         out[i, :n] = x

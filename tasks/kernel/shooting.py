@@ -39,6 +39,7 @@ from tasks.kernel.layout import (
     ETAD_OFF,
     EV_END,
     EV_GRAZE,
+    LEAF,
     N_STATS,
     REC_G,
     REC_KIND,
@@ -63,10 +64,17 @@ REC_ROWS = 512
 FD_REACH = 1e-3
 STEP_REACH = 0.1
 # Newton steps on the followed map between two full periods of :func:`_shoot`.
-FOLLOW_NEWTON = 6
+FOLLOW_NEWTON = 12
+# Halvings of a Newton step on the followed map that does not reduce the residual.
+FOLLOW_HALVINGS = 3
 # Sections a slow point's Newton settle tries (:func:`settle_at_phases`).
 SETTLE_PHASES = 4
 SETTLE_CYCLES = 150
+# Stability test of a fixed point: spectral radius of dP/dy at most STABLE_RADIUS.
+STABLE_RADIUS = 1.0 + 1e-6
+# Squarings of dP/dy the stability test tries before it computes the eigenvalues
+# (:func:`radius_within`).
+RADIUS_SQUARINGS = 10
 
 
 @njit(cache=True)
@@ -75,11 +83,104 @@ def _broyden_update(J, dR, step):
     changed the residual by ``dR``: ``J += (dR - J s) s^T / (s . s)``."""
     ss = _dot(step, step)
     if ss > 0.0:
-        u = dR - J @ step
         dim = J.shape[0]
+        u = dR.copy()
+        for i in range(dim):
+            for k in range(dim):
+                u[i] -= J[i, k] * step[k]
         for i in range(dim):
             for k in range(dim):
                 J[i, k] += u[i] * step[k] / ss
+
+
+@njit(cache=True)
+def _solve(A, rhs):
+    """``x`` with ``A x = rhs``: Gaussian elimination with partial pivoting, for the
+    small dense systems of shooting (dimension 2 N at most), where LAPACK's call
+    (copies, workspace, its threads) costs more than the elimination. All NaN where
+    a pivot is 0 (``A`` singular: no isolated fixed point)."""
+    dim = A.shape[0]
+    M = A.copy()
+    x = rhs.copy()
+    for k in range(dim):
+        p = k
+        big = abs(M[k, k])
+        for i in range(k + 1, dim):
+            if abs(M[i, k]) > big:
+                big = abs(M[i, k])
+                p = i
+        if not big > 0.0:
+            x[:] = np.nan
+            return x
+        if p != k:
+            for j in range(dim):
+                M[k, j], M[p, j] = M[p, j], M[k, j]
+            x[k], x[p] = x[p], x[k]
+        for i in range(k + 1, dim):
+            f = M[i, k] / M[k, k]
+            for j in range(k + 1, dim):
+                M[i, j] -= f * M[k, j]
+            x[i] -= f * x[k]
+    for k in range(dim - 1, -1, -1):
+        acc = x[k]
+        for j in range(k + 1, dim):
+            acc -= M[k, j] * x[j]
+        x[k] = acc / M[k, k]
+    return x
+
+
+@njit(**LEAF)
+def _norm_inf(A):
+    """The induced infinity norm of ``A`` (largest absolute row sum)."""
+    acc = 0.0
+    for i in range(A.shape[0]):
+        row = 0.0
+        for k in range(A.shape[1]):
+            row += abs(A[i, k])
+        acc = max(acc, row)
+    return acc
+
+
+@njit(cache=True)
+def radius_within(A, bound):
+    """Whether the spectral radius of the square matrix ``A`` is at most ``bound``.
+
+    ``rho(A) <= ||A^k||^(1 / k)`` for every k and every induced norm, so a power
+    ``A^k`` (k = 1, 2, 4, ..., ``2^RADIUS_SQUARINGS``, by repeated squaring, rescaled
+    so that nothing overflows) whose infinity norm is at most ``bound^k`` proves it
+    in a few small matrix products; where none does (a multiplier near or above
+    ``bound``, or a strongly non-normal matrix) the eigenvalues decide. The answer
+    is the eigenvalues' except within rounding of ``bound``.
+    """
+    dim = A.shape[0]
+    B = A.copy()
+    C = np.empty_like(B)
+    log_bound = math.log(bound)
+    log_scale = 0.0  # B = A^k / exp(log_scale)
+    k = 1.0
+    for _ in range(RADIUS_SQUARINGS + 1):
+        nrm = _norm_inf(B)
+        if nrm == 0.0:
+            return True
+        if not nrm < np.inf:
+            break
+        log_scale += math.log(nrm)
+        if log_scale <= k * log_bound:
+            return True
+        for i in range(dim):
+            for j in range(dim):
+                B[i, j] /= nrm
+        for i in range(dim):
+            for j in range(dim):
+                acc = 0.0
+                for m in range(dim):
+                    acc += B[i, m] * B[m, j]
+                C[i, j] = acc
+        B, C = C, B
+        log_scale *= 2.0
+        k *= 2.0
+    radius = np.max(np.abs(np.linalg.eigvals(A.astype(np.complex128))))
+    return radius <= bound
 
 
 @njit(cache=True)
@@ -122,7 +223,7 @@ def _expand(y, mode, n, w, T):
     return X
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def _phase_of(X, mode, b):
     """Phase a section state starts in: stuck stays stuck; a sliding state slides
     with the sign of its contact velocity (the flow is continuous across a
@@ -138,7 +239,7 @@ def _phase_of(X, mode, b):
     return mode
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def _same_chart(mode_a, mode_b):
     return (mode_a == 0) == (mode_b == 0)
 
@@ -149,17 +250,13 @@ def _period_recorded(X, mode, stats, ctx, work, theta, rec, rec_n):
     recording its events in ``rec`` (:func:`replay_cycles`; the same period bit for
     bit). Returns the new section state and phase."""
     n = X.shape[0] // 2
-    x = X[:n].copy()
-    xd = X[n:].copy()
+    X1 = X.copy()  # advanced in place through its two halves (views)
     rec_n[0] = 0
-    m1, _ = replay_cycles(x, xd, mode, theta, 1, stats, ctx, work, rec, rec_n)
-    X1 = np.empty(2 * n)
-    X1[:n] = x
-    X1[n:] = xd
+    m1, _ = replay_cycles(X1[:n], X1[n:], mode, theta, 1, stats, ctx, work, rec, rec_n)
     return X1, m1
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def _records_usable(rec, nr):
     """Whether a recorded period can carry nearby starts (:func:`_follow_records`):
     complete (it ends with its ``EV_END`` row) and without grazes (a touching zero
@@ -172,7 +269,7 @@ def _records_usable(rec, nr):
     return True
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def _follow_records(X, mode, rec, nr, ctx, work, theta, out, reach):
     """The period from a start near the recorded one, with the recorded event pattern.
 
@@ -193,12 +290,15 @@ def _follow_records(X, mode, rec, nr, ctx, work, theta, out, reach):
     sc = ctx[CTX_SC]
     beta = ctx[CTX_BETA]
     b = ctx[CTX_B]
-    eta, etad, eta_s, etad_s, q = work
+    eta, etad, eta_s, etad_s, q, _ = work
     phase = _phase_of(X, mode, b)
     if phase != int(rec[0, REC_MODE]):
         return False
-    x = X[:n].copy()
-    xd = X[n:].copy()
+    # the state is carried in ``out`` itself (views: nothing allocated)
+    x = out[:n]
+    xd = out[n:]
+    for i in range(2 * n):
+        out[i] = X[i]
     tau = theta
     tau_end = theta + TWO_PI
     v0 = _dot(b, xd)
@@ -268,8 +368,6 @@ def _follow_records(X, mode, rec, nr, ctx, work, theta, out, reach):
         tau += t
         phase = int(rec[j + 1, REC_MODE])
         v0 = 0.0
-    out[:n] = x
-    out[n:] = xd
     return True
 
 
@@ -329,8 +427,9 @@ def _follow_newton(y0, R0, J, mode, rec, nr, ctx, work, theta, target, scale):
     The map is the current period's event pattern followed from nearby starts
     (:func:`_follow_records`, events moving by up to ``STEP_REACH`` of their
     phase): no bracket scan, so a step costs a few evaluations per event. At most
-    ``FOLLOW_NEWTON`` steps, each of which must reduce the residual, until it is
-    below ``target``. The result is only a candidate: :func:`_shoot` verifies it on
+    ``FOLLOW_NEWTON`` steps, each of which must reduce the residual (else it is
+    halved, up to ``FOLLOW_HALVINGS`` times, as long as it follows the pattern),
+    until it is below ``target``. The result is only a candidate: :func:`_shoot` verifies it on
     a full period (a new event would change the map there, and the residual).
     Returns ``(y, moved)``; ``J`` is updated in place.
     """
@@ -345,22 +444,29 @@ def _follow_newton(y0, R0, J, mode, rec, nr, ctx, work, theta, target, scale):
     Pf = np.empty(2 * n)
     moved = False
     for _ in range(FOLLOW_NEWTON):
-        try:
-            step = np.linalg.solve(J, -Rf)
-        except Exception:  # singular
-            break
+        step = _solve(J, -Rf)  # (NaN where J is singular)
         if not np.all(np.isfinite(step)) or _max_abs(step) > 10.0 * scale:
             break
-        yn = yf + step
-        if not _follow_records(
-            _expand(yn, mode, n, w, T), mode, rec, nr, ctx, work, theta, Pf, STEP_REACH
-        ):
+        # a step that does not reduce the residual is halved (a damped Newton step
+        # on the followed map, FOLLOW_HALVINGS times at most); one that leaves the
+        # recorded pattern ends the steps (the full period decides there)
+        lam = 1.0
+        reduced = False
+        for _ls in range(FOLLOW_HALVINGS + 1):
+            yn = yf + lam * step
+            if not _follow_records(
+                _expand(yn, mode, n, w, T), mode, rec, nr, ctx, work, theta, Pf, STEP_REACH
+            ):
+                break
+            Rn = _reduce(Pf, mode, b, w, proj) - yn
+            rn = _max_abs(Rn)
+            if rn < res_f:
+                reduced = True
+                break
+            lam *= 0.5
+        if not reduced:
             break
-        Rn = _reduce(Pf, mode, b, w, proj) - yn
-        rn = _max_abs(Rn)
-        if not rn < res_f:
-            break
-        _broyden_update(J, Rn - Rf, step)
+        _broyden_update(J, Rn - Rf, yn - yf)
         yf = yn
         Rf = Rn
         res_f = rn
@@ -423,8 +529,7 @@ def _shoot(X0, mode, stats, ctx, work, rtol, floor, max_newton, theta, keep, kep
             dP = J.copy()
             for i in range(dim):
                 dP[i, i] += 1.0
-            radius = np.max(np.abs(np.linalg.eigvals(dP.astype(np.complex128))))
-            stable = radius <= 1.0 + 1e-6
+            stable = radius_within(dP, STABLE_RADIUS)
             nr = rec_n[0]
             if stable and nr < rec.shape[0] and nr <= keep.shape[0]:
                 keep[:nr] = rec[:nr]  # the verified period's events, for the orbit check
@@ -433,19 +538,24 @@ def _shoot(X0, mode, stats, ctx, work, rtol, floor, max_newton, theta, keep, kep
         if _records_usable(rec, rec_n[0]):
             # Newton on the followed map (no bracket scans), then one full period
             # from its candidate: the new iterate if it reduced the residual
+            target = 0.01 * rtol * max(scale, floor)
             yf, moved = _follow_newton(
-                y0,
-                R,
-                J,
-                mode,
-                rec,
-                rec_n[0],
-                ctx,
-                work,
-                theta,
-                0.01 * rtol * max(scale, floor),
-                scale,
+                y0, R, J, mode, rec, rec_n[0], ctx, work, theta, target, scale
             )
+            if not moved and not fresh:
+                # the updated Jacobian no longer reduces the residual of the
+                # followed map: rebuild it here from followed columns (cheap)
+                # before a step on full periods
+                used = _fd_jacobian(y0, y1, mode, ctx, work, scale, J, theta, rec, rec_n[0])
+                if used < 0:
+                    return False, X0, cycles + dim
+                cycles += used
+                if not np.all(np.isfinite(J)):
+                    return False, X0, cycles
+                fresh = True
+                yf, moved = _follow_newton(
+                    y0, R, J, mode, rec, rec_n[0], ctx, work, theta, target, scale
+                )
             if moved:
                 Xn = _expand(yf, mode, n, w, T)
                 X1n, mn = _period_recorded(
@@ -464,10 +574,7 @@ def _shoot(X0, mode, stats, ctx, work, rtol, floor, max_newton, theta, keep, kep
                         rec_n, rec_tn = rec_tn, rec_n
                         fresh = False
                         continue
-        try:
-            step = np.linalg.solve(J, -R)
-        except Exception:  # singular: no isolated fixed point (e.g. resonance)
-            return False, X0, cycles
+        step = _solve(J, -R)  # (NaN where J is singular: no isolated fixed point)
         # trust region: a fixed point far beyond the current motion is not a
         # settled transient but a (near-)singular map, e.g. resonant growth
         if not np.all(np.isfinite(step)) or _max_abs(step) > 10.0 * scale:
@@ -556,15 +663,11 @@ def newton_settle(X0, mode, stats, ctx, work, rtol, floor, max_iter, theta):
             dP = J.copy()
             for i in range(dim):
                 dP[i, i] += 1.0
-            radius = np.max(np.abs(np.linalg.eigvals(dP.astype(np.complex128))))
-            if radius > 1.0 + 1e-6:
+            if not radius_within(dP, STABLE_RADIUS):
                 return False, X, cycles
             _cycle(X, _phase_of(X, mode, b), theta, stats, ctx, work, theta)
             return True, X, cycles + 1
-        try:
-            step = np.linalg.solve(J, -R)
-        except Exception:  # singular: no isolated fixed point
-            return False, X, cycles
+        step = _solve(J, -R)  # (NaN where J is singular: no isolated fixed point)
         if not np.all(np.isfinite(step)) or _max_abs(step) > 100.0 * max(scale, floor):
             return False, X, cycles
         y = y + step

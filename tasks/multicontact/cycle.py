@@ -19,7 +19,7 @@ import math
 import numpy as np
 from numba import njit
 
-from tasks.kernel.events import never_unsticks, next_event
+from tasks.kernel.events import DIP_STACK, never_unsticks, next_event
 from tasks.kernel.layout import (
     ALPHA,
     BETA,
@@ -292,6 +292,7 @@ def run_cycle(x, xd, stuck, signs, cst, gst, ctx, tau_start, tau_end, max_work, 
     new_signs = np.zeros(k)
     t_found = np.empty(k)
     d_start = np.empty(k)
+    stack = np.empty((DIP_STACK, 6))  # next_event's bisection stack
     tau = tau_start
     events = 0
     work = 0.0
@@ -328,7 +329,7 @@ def run_cycle(x, xd, stuck, signs, cst, gst, ctx, tau_start, tau_end, max_work, 
                 continue
             scs[c, WORK_CAP] = max_work - work
             t_end = min(remaining, best + 2.0 * tol)
-            t, found = next_event(segs[c], scs[c], t_end, h, tol, eta, etad)
+            t, found = next_event(segs[c], scs[c], t_end, h, tol, eta, etad, stack)
             work += scs[c, EVALS]
             if found:
                 t_found[c] = t
