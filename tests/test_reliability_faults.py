@@ -283,6 +283,9 @@ def test_ctrl_c_during_local_cluster_start_one_line(tmp_path):
     rc, lines, err = _finish(proc)
     assert rc == 130, err
     assert "Traceback" not in err and "KeyboardInterrupt" not in err, err
+    # the cluster may have come up just before the signal (a loaded machine): its
+    # one information line may precede the interruption's, nothing else may
+    lines = [ln for ln in lines if not ln.startswith("study: local cluster with")]
     assert len(lines) == 1 and lines[0].startswith("study: interrupted:"), err
     work = tmp_path / "long.nc.work"  # named only where it is kept
     assert (str(work) in lines[0] or "long.nc.work" in lines[0]) == work.is_dir(), err

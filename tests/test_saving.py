@@ -143,7 +143,7 @@ def test_threads_ctrl_c_keeps_every_arrived_list_and_resumes_identically(
     reused = [ln for ln in log.getvalue().splitlines() if "saved points reused" in ln]
     n = [int(ln.split(" saved points reused")[0].split()[-1].replace(",", "")) for ln in reused]
     assert sum(n) == on_disk
-    assert_same_result(clean, out)
+    assert_same_result(clean, out, regrouped=True)
 
 
 KILLED = """
@@ -186,4 +186,4 @@ def test_kill_9_mid_run_loses_nothing_whole_and_resumes_identically(tmp_path, cl
     )
     assert rerun.returncode == 0, rerun.stderr
     assert "discarded" not in rerun.stderr and "Traceback" not in rerun.stderr
-    assert_same_result(clean, out)
+    assert_same_result(clean, out, regrouped=True)
