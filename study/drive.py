@@ -10,15 +10,13 @@ background writer, atomic files of :mod:`study.store`), once, with what its unit
 adds (``saved_with``: the indices of an adaptive point list), and hands it to its
 plan (:meth:`~study.chunks.ScenePlan.accept`), which may then have more units to
 give (new points of an adaptive plane). Whatever stops the loop (Ctrl-C, a
-failed unit), every arrived result is written before the run ends. Threads of
-this process compute small studies without Dask (:mod:`study.threads`). A
+failed unit), every arrived result is written before the run ends. A
 killed worker costs only the tasks it was running or holding, which the
 scheduler reruns elsewhere; tasks that raise are retried (``retries``).
 """
 
 from __future__ import annotations
 
-import sys
 import time
 from concurrent.futures import CancelledError
 from contextlib import suppress
@@ -76,15 +74,14 @@ class Driven:
 
 
 def _failure(unit, exc: BaseException, retries: int, where: str) -> StudyFailed:
-    dask = "distributed" in sys.modules  # else threads of this process (study.threads)
-    if dask:
-        from distributed import KilledWorker
-        from distributed.comm.core import CommClosedError
+    from distributed import KilledWorker
+    from distributed.comm.core import CommClosedError
+
     if isinstance(exc, CancelledError):
         why = "was cancelled by the scheduler (restarted, or the connection to it was lost)"
-    elif dask and isinstance(exc, CommClosedError | ConnectionError):
+    elif isinstance(exc, CommClosedError | ConnectionError):
         why = "could not be fetched: the connection to the scheduler was lost"
-    elif dask and isinstance(exc, KilledWorker):
+    elif isinstance(exc, KilledWorker):
         why = f"killed every worker that ran it: {exc}"
     else:
         why = f"failed after {retries} retries: {type(exc).__name__}: {exc}"
@@ -99,10 +96,7 @@ class _Window:
     """Units in flight, the plans still handing out units, and the progress."""
 
     def __init__(self, client, plans, work, bar: Progress, retries: int, done: Driven):
-        if hasattr(client, "as_completed"):  # study.threads.ThreadClient: no Dask
-            as_completed = client.as_completed
-        else:
-            from distributed import as_completed
+        from distributed import as_completed
 
         self.client, self.work, self.bar, self.retries, self.done = (
             client,

@@ -124,29 +124,14 @@ def connect(
     """A Dask client: the one given, a running scheduler, or a new LocalCluster.
 
     The LocalCluster has one single-threaded worker process per core and
-    listens on 127.0.0.1 only; with ``in_process`` threads, a pool of that many
-    threads of this process instead, without Dask (:class:`study.threads.ThreadClient`:
-    no process to start, for studies whose planned compute is short,
-    :func:`study.drive.local_threads`). With a running scheduler, ``workers``
-    means: wait until that many workers are connected. A client that is given is
-    neither changed nor closed.
+    listens on 127.0.0.1 only; with ``in_process`` threads, one worker of that
+    many threads in this process instead (no process to start: for studies
+    whose planned compute is short, :func:`study.drive.local_threads`). With a running
+    scheduler, ``workers`` means: wait until that many workers are connected.
+    A client that is given is neither changed nor closed.
     """
     if client is not None:
         yield client
-        return
-    if in_process:
-        from study.threads import ThreadClient
-
-        pool = ThreadClient(in_process)
-        print(
-            "study: a small study: computing in this process (no worker processes to wait "
-            f"for), {in_process} thread{'s' if in_process > 1 else ''}",
-            file=stream,
-        )
-        try:
-            yield pool
-        finally:
-            pool.close()
         return
     from distributed import Client, LocalCluster
 
@@ -184,12 +169,14 @@ def connect(
                 ) from None
             raise
     else:
-        n = workers or default_workers()
+        n = 1 if in_process else workers or default_workers()
         cluster = start_deferring_sigint(  # Ctrl-C during the start: one line (study.watchdog)
             lambda: LocalCluster(
                 n_workers=n,
-                threads_per_worker=1,
-                processes=True,
+                threads_per_worker=max(1, in_process),
+                processes=not in_process,
+                # tcp:// for a cluster in this process too: inproc:// opens a port on
+                # every interface beside it
                 protocol="tcp://",
                 host="127.0.0.1",
                 dashboard_address="127.0.0.1:0",
@@ -201,8 +188,13 @@ def connect(
         try:
             client = Client(cluster)
             client.register_plugin(ignore_sigint_plugin())
-            note = dashboard_note(client, local=True)
-            print(f"study: local cluster with {n} workers, {note}", file=stream)
+            what = (
+                "a small study: computing in this process (no worker processes to wait "
+                f"for), {in_process} thread{'s' if in_process > 1 else ''}"
+                if in_process
+                else f"local cluster with {n} workers"
+            )
+            print(f"study: {what}, {dashboard_note(client, local=True)}", file=stream)
         except BaseException as exc:
             if client is not None:
                 client.close()
@@ -427,8 +419,6 @@ def _compute(plans, work, where, retries, progress, timeouts, done, stream):
     )
     bar.eta_seconds = bar.tracker.eta
     in_process = local_threads(plans, work, default_workers()) if local and workers is None else 0
-    if in_process:  # (with Dask the client imports distributed meanwhile: not both)
-        threading.Thread(target=_import_writer, name="study-import", daemon=True).start()
     if local:
         compile_once(stream)  # before the local workers start: they load it from cache
     quiet = quiet_dask_logs() if client is None else nullcontext()
@@ -440,16 +430,16 @@ def _compute(plans, work, where, retries, progress, timeouts, done, stream):
     with quiet, connect(client, scheduler, scheduler_file, workers, stream, **kw) as c:
         bar.start()
         t1 = time.perf_counter()
-        dog = None  # threads of this process: no scheduler or worker to lose
-        if not in_process:
-            dog = Watchdog(
-                c,
-                worker_timeout,
-                local=local,
-                where=str(work.path),
-                stream=stream,
-                scheduler_timeout=scheduler_timeout,
-            )
+        if in_process:  # the result's modules, imported while the threads compute
+            threading.Thread(target=_import_writer, name="study-import", daemon=True).start()
+        dog = Watchdog(
+            c,
+            worker_timeout,
+            local=local,
+            where=str(work.path),
+            stream=stream,
+            scheduler_timeout=scheduler_timeout,
+        )
         drive(c, plans, work, bar, retries, done, watchdog=dog)
         wall = time.perf_counter() - t1
     bar.close()

@@ -1,4 +1,4 @@
-"""Saving in the background (study.saving) and computing in threads (study.threads).
+"""Saving in the background (study.saving), with worker processes and with threads of the run.
 
 * the writer merges queued point lists of one plane into one file that a rerun
   reads as a point list (its key checked against its points), writes every
