@@ -76,8 +76,8 @@ STARTUP_SECONDS = 4.5
 #: Wall seconds before and after the compute of a small study computed in threads
 #: of the run's own process (:func:`study.drive.local_threads`): imports, loading
 #: the compiled kernel, writing the result (``bench_example.py``, the Fig. 4
-#: example: 0.35-0.75 s before, 0.5 s after).
-IN_PROCESS_STARTUP_SECONDS = 1.0
+#: example, its in-process Dask worker included: 0.75 s before, 0.6 s after).
+IN_PROCESS_STARTUP_SECONDS = 1.4
 #: Scheduling overhead of tasks of about ``task_seconds`` (bench_scheduling.py: 2-5 %).
 SCHEDULING_OVERHEAD = 0.05
 #: Shortest task the sizing aims at, in seconds: below ~0.1 s the fixed cost of
