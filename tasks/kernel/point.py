@@ -361,7 +361,7 @@ def simulate_point(r, beta, scene, settings, out, final, keep, kept):
             if not early:
                 next_shot = 2 * next_shot
             ok, Xs, used = _shoot(
-                X, mode, stats, ctx, work, section_rtol, ref, 20, theta, keep, kept
+                X, mode, stats, ctx, work, section_rtol, ref, 20, theta, keep, kept, False
             )
             cycles += used
             if ok:
@@ -429,7 +429,8 @@ def warm_point(r, beta, scene, settings, out, final, seed, keep, kept):
     ``seed`` is the neighbour's row of :func:`run_points`' ``final`` (section
     state, phase, section phase theta). Newton's method on this point's
     Poincare map at the same section (:func:`tasks.kernel.shooting._shoot`, at
-    most ``WARM_NEWTON`` steps) starts from the seed and must reach a residual
+    most ``WARM_NEWTON`` steps, given up at the first full period that does not
+    reduce the residual) starts from the seed and must reach a residual
     of ``POLISH_RTOL`` of the motion (or ``event_tol``: :func:`_polish_rtol`; the
     polish of :func:`polish_point`, so the fixed point does not depend on the
     seed), not unstable; its period's
@@ -481,6 +482,7 @@ def warm_point(r, beta, scene, settings, out, final, seed, keep, kept):
         theta,
         keep,
         kept,
+        True,  # a failed warm start gives up early: the held start backs it up
     )
     if not ok:
         return False, used
@@ -531,6 +533,7 @@ def polish_point(r, beta, scene, settings, out, final, keep, kept):
         theta,
         keep,
         kept,
+        False,
     )
     cycles = out[OUT_CYCLES] + used
     out[OUT_CYCLES] = cycles
