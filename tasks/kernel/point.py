@@ -60,6 +60,7 @@ from tasks.kernel.layout import (
     STATUS_OK,
     TWO_PI,
 )
+from tasks.kernel.linsolve import _solve
 from tasks.kernel.orbit import _check_orbit
 from tasks.kernel.outcome import _finish, _no_motion_by_margin, _undetermined
 from tasks.kernel.shooting import (
@@ -208,7 +209,7 @@ def simulate_point(r, beta, scene, settings, out, final, keep, kept):
     X_prev2 = X.copy()
     diff_prev = np.inf
     # scale of the motion: the static response to the load amplitude, or more
-    ref = max(_max_abs(X), _max_abs(np.linalg.solve(ctx[CTX_K], ctx[CTX_P])), 1e-300)
+    ref = _floor(ctx, X)
     stick_start = 0.0
     cycles = 0
     next_shot = shooting_after
@@ -419,7 +420,7 @@ def simulate_point(r, beta, scene, settings, out, final, keep, kept):
 def _floor(ctx, X_held):
     """Scale of the motion a section residual is measured against when the motion is
     small: the larger of the held start and the static response to the load."""
-    return max(_max_abs(X_held), _max_abs(np.linalg.solve(ctx[CTX_K], ctx[CTX_P])), 1e-300)
+    return max(_max_abs(X_held), _max_abs(_solve(ctx[CTX_K], ctx[CTX_P])), 1e-300)
 
 
 @njit(cache=True)
