@@ -5,7 +5,8 @@ Jacobian where they prove it and from the eigenvalues otherwise; its answer must
 be the eigenvalues' (numpy's, an independent computation) on matrices of every
 kind a fixed point can have: contracting and normal, contracting but strongly
 non-normal (norm far above 1, so no low power proves it), a multiplier just
-inside or just outside the bound, complex pairs, defective blocks.
+inside or just outside the bound, complex pairs, defective blocks, and random
+spectra near the bound.
 """
 
 from __future__ import annotations
@@ -54,6 +55,9 @@ def _radius(A: np.ndarray) -> float:
         np.array([-(1.0 + 1e-4), 0.9, 0.2 + 0.1j]),
         np.array([1.0 + 1e-9, 0.5, 0.5j + 0.1]),  # just inside the bound
         np.array([0.0, 0.0, 0.0]),
+        np.array([0.99999, 0.5, -0.3]),  # slow contraction: proved by a high power
+        np.array([(1.0 + 1e-5) * np.exp(0.7j), 0.4]),  # complex pair just outside
+        np.array([-(1.0 + 3e-6), 0.99, 0.2]),  # real, negative, just outside
     ],
 )
 def test_radius_within_agrees_with_the_eigenvalues(eigs, cond):
@@ -71,3 +75,18 @@ def test_radius_within_strongly_non_normal():
         A = np.array([[lam, 1e8, 0.0], [0.0, lam, 1e8], [0.0, 0.0, lam]])
         assert radius_within(A, STABLE_RADIUS) is expected
         assert (_radius(A) <= STABLE_RADIUS) is expected
+
+
+def test_radius_within_agrees_with_the_eigenvalues_near_the_bound():
+    """Random spectra (real and complex, 3 to 10 dimensions, moderately non-normal)
+    with the radius within 1e-3 of the bound but at least 1e-8 from it: the norm
+    and trace bounds of the powers decide as the eigenvalues do."""
+    rng = np.random.default_rng(19)
+    for _ in range(60):
+        dim = int(rng.integers(3, 11))
+        radius = STABLE_RADIUS + rng.choice([-1.0, 1.0]) * 10.0 ** rng.uniform(-8, -3)
+        eigs = list(rng.uniform(-0.9, 0.9, size=dim - 2))
+        top = radius * np.exp(1j * rng.uniform(0.0, np.pi)) if rng.random() < 0.5 else radius
+        eigs.append(top if np.iscomplexobj(top) else rng.choice([-1.0, 1.0]) * top)
+        A = _with_spectrum(np.array(eigs, dtype=complex), rng, 10.0)
+        assert radius_within(A, STABLE_RADIUS) == (_radius(A) <= STABLE_RADIUS)

@@ -40,6 +40,7 @@ from tasks.kernel.layout import (
     ST_STUCK_TIME,
     TWO_PI,
 )
+from tasks.kernel.linsolve import _solve
 from tasks.kernel.phases import _dot, _start_stick
 from tasks.regimes import CREEP_FORCE_RTOL, NO_MOTION, SLIP_RTOL, STICK_SLIP
 
@@ -56,7 +57,7 @@ def creep_threshold(ctx, beta):
     changed by one part in ``1 / SLIP_RTOL`` (docs/theory.md 3, creep).
     """
     b = ctx[CTX_B]
-    c = _dot(b, np.linalg.solve(ctx[CTX_K], b))
+    c = _dot(b, _solve(ctx[CTX_K], b))
     return SLIP_RTOL * beta * abs(c)
 
 

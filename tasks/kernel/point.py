@@ -60,6 +60,7 @@ from tasks.kernel.layout import (
     STATUS_OK,
     TWO_PI,
 )
+from tasks.kernel.linsolve import _solve
 from tasks.kernel.orbit import _check_orbit
 from tasks.kernel.outcome import _finish, _no_motion_by_margin, _undetermined
 from tasks.kernel.shooting import (
@@ -208,7 +209,7 @@ def simulate_point(r, beta, scene, settings, out, final, keep, kept):
     X_prev2 = X.copy()
     diff_prev = np.inf
     # scale of the motion: the static response to the load amplitude, or more
-    ref = max(_max_abs(X), _max_abs(np.linalg.solve(ctx[CTX_K], ctx[CTX_P])), 1e-300)
+    ref = _floor(ctx, X)
     stick_start = 0.0
     cycles = 0
     next_shot = shooting_after
@@ -361,7 +362,7 @@ def simulate_point(r, beta, scene, settings, out, final, keep, kept):
             if not early:
                 next_shot = 2 * next_shot
             ok, Xs, used = _shoot(
-                X, mode, stats, ctx, work, section_rtol, ref, 20, theta, keep, kept
+                X, mode, stats, ctx, work, section_rtol, ref, 20, theta, keep, kept, False
             )
             cycles += used
             if ok:
@@ -419,7 +420,7 @@ def simulate_point(r, beta, scene, settings, out, final, keep, kept):
 def _floor(ctx, X_held):
     """Scale of the motion a section residual is measured against when the motion is
     small: the larger of the held start and the static response to the load."""
-    return max(_max_abs(X_held), _max_abs(np.linalg.solve(ctx[CTX_K], ctx[CTX_P])), 1e-300)
+    return max(_max_abs(X_held), _max_abs(_solve(ctx[CTX_K], ctx[CTX_P])), 1e-300)
 
 
 @njit(cache=True)
@@ -429,7 +430,8 @@ def warm_point(r, beta, scene, settings, out, final, seed, keep, kept):
     ``seed`` is the neighbour's row of :func:`run_points`' ``final`` (section
     state, phase, section phase theta). Newton's method on this point's
     Poincare map at the same section (:func:`tasks.kernel.shooting._shoot`, at
-    most ``WARM_NEWTON`` steps) starts from the seed and must reach a residual
+    most ``WARM_NEWTON`` steps, given up at the first full period that does not
+    reduce the residual) starts from the seed and must reach a residual
     of ``POLISH_RTOL`` of the motion (or ``event_tol``: :func:`_polish_rtol`; the
     polish of :func:`polish_point`, so the fixed point does not depend on the
     seed), not unstable; its period's
@@ -481,6 +483,7 @@ def warm_point(r, beta, scene, settings, out, final, seed, keep, kept):
         theta,
         keep,
         kept,
+        True,  # a failed warm start gives up early: the held start backs it up
     )
     if not ok:
         return False, used
@@ -531,6 +534,7 @@ def polish_point(r, beta, scene, settings, out, final, keep, kept):
         theta,
         keep,
         kept,
+        False,
     )
     cycles = out[OUT_CYCLES] + used
     out[OUT_CYCLES] = cycles

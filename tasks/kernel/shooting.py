@@ -51,6 +51,7 @@ from tasks.kernel.layout import (
     STATUS_OK,
     TWO_PI,
 )
+from tasks.kernel.linsolve import _solve
 from tasks.kernel.phases import _dot, _slip_state, _start_slip, _start_stick, _stick_state
 from tasks.kernel.propagation import evaluate
 from tasks.kernel.starts import start_phase
@@ -73,8 +74,10 @@ SETTLE_CYCLES = 150
 # Stability test of a fixed point: spectral radius of dP/dy at most STABLE_RADIUS.
 STABLE_RADIUS = 1.0 + 1e-6
 # Squarings of dP/dy the stability test tries before it computes the eigenvalues
-# (:func:`radius_within`).
-RADIUS_SQUARINGS = 10
+# (:func:`radius_within`), and the smallest trace of a power, relative to its
+# norm, that it reads as a lower bound of the spectral radius.
+RADIUS_SQUARINGS = 40
+TRACE_RTOL = 1e-2
 
 
 @njit(cache=True)
@@ -91,42 +94,6 @@ def _broyden_update(J, dR, step):
         for i in range(dim):
             for k in range(dim):
                 J[i, k] += u[i] * step[k] / ss
-
-
-@njit(cache=True)
-def _solve(A, rhs):
-    """``x`` with ``A x = rhs``: Gaussian elimination with partial pivoting, for the
-    small dense systems of shooting (dimension 2 N at most), where LAPACK's call
-    (copies, workspace, its threads) costs more than the elimination. All NaN where
-    a pivot is 0 (``A`` singular: no isolated fixed point)."""
-    dim = A.shape[0]
-    M = A.copy()
-    x = rhs.copy()
-    for k in range(dim):
-        p = k
-        big = abs(M[k, k])
-        for i in range(k + 1, dim):
-            if abs(M[i, k]) > big:
-                big = abs(M[i, k])
-                p = i
-        if not big > 0.0:
-            x[:] = np.nan
-            return x
-        if p != k:
-            for j in range(dim):
-                M[k, j], M[p, j] = M[p, j], M[k, j]
-            x[k], x[p] = x[p], x[k]
-        for i in range(k + 1, dim):
-            f = M[i, k] / M[k, k]
-            for j in range(k + 1, dim):
-                M[i, j] -= f * M[k, j]
-            x[i] -= f * x[k]
-    for k in range(dim - 1, -1, -1):
-        acc = x[k]
-        for j in range(k + 1, dim):
-            acc -= M[k, j] * x[j]
-        x[k] = acc / M[k, k]
-    return x
 
 
 @njit(**LEAF)
@@ -148,8 +115,13 @@ def radius_within(A, bound):
     ``rho(A) <= ||A^k||^(1 / k)`` for every k and every induced norm, so a power
     ``A^k`` (k = 1, 2, 4, ..., ``2^RADIUS_SQUARINGS``, by repeated squaring, rescaled
     so that nothing overflows) whose infinity norm is at most ``bound^k`` proves it
-    in a few small matrix products; where none does (a multiplier near or above
-    ``bound``, or a strongly non-normal matrix) the eigenvalues decide. The answer
+    in small matrix products. Conversely ``|trace A^k| <= dim rho^k``, so a power
+    whose trace exceeds ``dim bound^k`` proves the radius above ``bound`` (read
+    only where the trace is at least ``TRACE_RTOL`` of the norm, far above the
+    rounding of the squarings). With ``k`` up to ``2^40`` the two bounds close in
+    on ``rho`` to far below the margin ``bound - 1``; only where neither proves
+    anything (e.g. a dominant complex pair whose powers' traces stay small) do
+    the eigenvalues decide (LAPACK, whose call wakes the BLAS threads). The answer
     is the eigenvalues' except within rounding of ``bound``.
     """
     dim = A.shape[0]
@@ -164,6 +136,14 @@ def radius_within(A, bound):
             return True
         if not nrm < np.inf:
             break
+        tr = 0.0
+        for i in range(dim):
+            tr += B[i, i]
+        # |trace A^k| <= dim rho^k: a trace this large proves rho > bound (counted
+        # only where it stands well above the rounding of the repeated squarings)
+        if abs(tr) >= TRACE_RTOL * nrm:
+            if math.log(abs(tr)) + log_scale - math.log(dim) > k * log_bound:
+                return False
         log_scale += math.log(nrm)
         if log_scale <= k * log_bound:
             return True
@@ -477,7 +457,7 @@ def _follow_newton(y0, R0, J, mode, rec, nr, ctx, work, theta, target, scale):
 
 
 @njit(cache=True)
-def _shoot(X0, mode, stats, ctx, work, rtol, floor, max_newton, theta, keep, kept):
+def _shoot(X0, mode, stats, ctx, work, rtol, floor, max_newton, theta, keep, kept, give_up):
     """Newton's method on the Poincare map ``P(X) - X = 0`` (shooting).
 
     Works in the coordinates of the phase the section falls in
@@ -488,6 +468,11 @@ def _shoot(X0, mode, stats, ctx, work, rtol, floor, max_newton, theta, keep, kep
     if its residual is below ``rtol`` of the motion (or of ``floor``, the static
     response) and it is not unstable (spectral radius of ``dP/dy`` at most
     1 + 1e-6): shooting must find the attractor, not any periodic orbit.
+
+    With ``give_up`` (a warm start, which the held start backs up) the shot
+    ends at the first full period that does not reduce the residual (no halved
+    steps, no rebuilt Jacobian after a failed step), so a start that is not
+    converging costs one or two periods instead of up to a dozen.
 
     Returns ``(success, X, cycles_used)``; on success ``stats`` holds the
     statistics of the verified period ``X -> P(X)`` and its recorded events are
@@ -574,6 +559,8 @@ def _shoot(X0, mode, stats, ctx, work, rtol, floor, max_newton, theta, keep, kep
                         rec_n, rec_tn = rec_tn, rec_n
                         fresh = False
                         continue
+                if give_up:  # the full period did not confirm the step
+                    return False, X0, cycles
         step = _solve(J, -R)  # (NaN where J is singular: no isolated fixed point)
         # trust region: a fixed point far beyond the current motion is not a
         # settled transient but a (near-)singular map, e.g. resonant growth
@@ -602,9 +589,11 @@ def _shoot(X0, mode, stats, ctx, work, rtol, floor, max_newton, theta, keep, kep
                     accepted = True
                     fresh = False
                     break
+            if give_up:  # no halved steps in a warm start
+                break
             lam *= 0.5
         if not accepted:
-            if fresh:
+            if fresh or give_up:
                 return False, X0, cycles
             # the updated Jacobian went stale: rebuild it once here
             used = _fd_jacobian(y0, y1, mode, ctx, work, scale, J, theta, rec, rec_n[0])

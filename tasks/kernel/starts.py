@@ -31,6 +31,7 @@ from tasks.kernel.layout import (
     LOAD_COS,
     OMEGA,
 )
+from tasks.kernel.linsolve import _solve
 from tasks.kernel.phases import _contact_force, _dot, _stick_state
 
 
@@ -121,7 +122,7 @@ def _random_start(X_held, gamma, K, p, r, beta, k, seed):
     h = (h * 31 + int(r * 1e9)) & 0x7FFFFFFF
     h = (h * 31 + int(beta * 1e9)) & 0x7FFFFFFF
     np.random.seed(h)  # noqa: NPY002 (numba: the legacy API only)
-    x_stat = np.linalg.solve(K, p)
+    x_stat = _solve(K, p)
     e_ref = max(_energy(X_held, gamma, K, r), 0.5 * _dot(x_stat, p), 1e-300)
     X = np.empty(2 * n)
     for i in range(2 * n):
