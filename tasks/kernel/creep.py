@@ -17,15 +17,9 @@ from tasks.kernel.events import stick_force_bound
 from tasks.kernel.layout import (
     CTX_B,
     CTX_BETA,
-    CTX_DSTAT_R2,
-    CTX_G_COS,
-    CTX_G_D0,
     CTX_K,
-    CTX_PHI_S_T_GAMMA_S,
-    CTX_PROJ,
     CTX_SC,
     CTX_SEG_STICK,
-    CTX_W,
     OUT_AMP,
     OUT_ASYMPTOTIC,
     OUT_CONVERGED,
@@ -41,7 +35,7 @@ from tasks.kernel.layout import (
     TWO_PI,
 )
 from tasks.kernel.linsolve import _solve
-from tasks.kernel.phases import _dot, _start_stick
+from tasks.kernel.phases import _dot, start_stick_in
 from tasks.regimes import CREEP_FORCE_RTOL, NO_MOTION, SLIP_RTOL, STICK_SLIP
 
 
@@ -73,22 +67,7 @@ def creep_settled(X, ctx, theta):
     sc = ctx[CTX_SC]
     beta = ctx[CTX_BETA]
     work = np.zeros(2 * seg.shape[1])
-    _start_stick(
-        seg,
-        sc,
-        X[:n].copy(),
-        X[n:].copy(),
-        theta,
-        beta,
-        ctx[CTX_B],
-        ctx[CTX_W],
-        ctx[CTX_PROJ],
-        ctx[CTX_PHI_S_T_GAMMA_S],
-        ctx[CTX_DSTAT_R2],
-        ctx[CTX_G_COS],
-        ctx[CTX_G_D0],
-        work,
-    )
+    start_stick_in(ctx, X[:n].copy(), X[n:].copy(), theta, beta, work)
     bound = stick_force_bound(seg, sc)
     return math.isfinite(bound) and bound <= beta * (1.0 + CREEP_FORCE_RTOL)
 

@@ -20,9 +20,6 @@ from tasks.kernel.cycle import replay_cycles
 from tasks.kernel.damping import particular, stick_force_bound_damped
 from tasks.kernel.layout import (
     CTX_B,
-    CTX_DSTAT_R2,
-    CTX_G_COS,
-    CTX_G_D0,
     CTX_G_LOAD,
     CTX_H_SLIP,
     CTX_H_STICK,
@@ -31,14 +28,11 @@ from tasks.kernel.layout import (
     CTX_P,
     CTX_PHI,
     CTX_PHI_S,
-    CTX_PHI_S_T_GAMMA_S,
     CTX_PHI_T_GAMMA,
-    CTX_PROJ,
     CTX_SC,
     CTX_SEG_SLIP,
     CTX_SEG_STICK,
     CTX_T,
-    CTX_W,
     DAMP,
     DAMPED,
     LEAF,
@@ -55,7 +49,7 @@ from tasks.kernel.layout import (
     STATUS_OK,
     TWO_PI,
 )
-from tasks.kernel.phases import _contact_force, _dot, _matvec, _start_stick
+from tasks.kernel.phases import _contact_force, _dot, _matvec, start_stick_in
 from tasks.kernel.records import sample_states
 from tasks.kernel.starts import _held_response
 
@@ -325,22 +319,7 @@ def orbit_design_recorded(r, beta, scene, settings, state, period, samples, dout
         x = state[:n].copy()
         xd = state[n : 2 * n].copy()
         eta, etad, eta_s, etad_s, q, _ = work
-        _start_stick(
-            ctx[CTX_SEG_STICK],
-            ctx[CTX_SC],
-            x,
-            xd,
-            theta,
-            beta,
-            b,
-            ctx[CTX_W],
-            ctx[CTX_PROJ],
-            ctx[CTX_PHI_S_T_GAMMA_S],
-            ctx[CTX_DSTAT_R2],
-            ctx[CTX_G_COS],
-            ctx[CTX_G_D0],
-            q,
-        )
+        start_stick_in(ctx, x, xd, theta, beta, q)
         force = stick_force_bound_damped(ctx[CTX_SEG_STICK], ctx[CTX_SC])
     else:  # stuck the whole orbit: the largest |g| (g' = -g_load . (p sin tau + K x'))
         acc[0] = np.inf

@@ -17,20 +17,14 @@ from tasks.kernel.layout import (
     BETA,
     CTX_B,
     CTX_BETA,
-    CTX_DSTAT_R2,
     CTX_F_R2,
-    CTX_G_COS,
-    CTX_G_D0,
     CTX_H_SLIP,
     CTX_H_STICK,
-    CTX_PHI_S_T_GAMMA_S,
     CTX_PHI_T_GAMMA,
-    CTX_PROJ,
     CTX_SC,
     CTX_SEG_SLIP,
     CTX_SEG_STICK,
     CTX_TOL,
-    CTX_W,
     EV_END,
     EV_SECTION,
     EVALS,
@@ -53,7 +47,7 @@ from tasks.kernel.layout import (
     WORK_CAP,
 )
 from tasks.kernel.outcome import _undetermined
-from tasks.kernel.phases import _dot, _start_slip, _start_stick
+from tasks.kernel.phases import _dot, _start_slip, start_stick_in
 from tasks.kernel.propagation import derivative_bounds, evaluate
 from tasks.regimes import NO_MOTION, NUMERICAL_FAILURE, WORK_LIMIT
 
@@ -171,22 +165,7 @@ def records_hold(rec, nr, ctx, work):
         phase = int(rec[j, REC_MODE])
         if phase == 0:
             seg = ctx[CTX_SEG_STICK]
-            _start_stick(
-                seg,
-                sc,
-                x,
-                xd,
-                tau0,
-                beta,
-                ctx[CTX_B],
-                ctx[CTX_W],
-                ctx[CTX_PROJ],
-                ctx[CTX_PHI_S_T_GAMMA_S],
-                ctx[CTX_DSTAT_R2],
-                ctx[CTX_G_COS],
-                ctx[CTX_G_D0],
-                q,
-            )
+            start_stick_in(ctx, x, xd, tau0, beta, q)
             ok = _phase_holds(seg, sc, t_len, h_stick, tol, eta_s, etad_s)
         else:
             seg = ctx[CTX_SEG_SLIP]

@@ -29,6 +29,15 @@ from tasks.kernel.layout import (
     ALPHA,
     BETA,
     COS_TAU0,
+    CTX_B,
+    CTX_DSTAT_R2,
+    CTX_G_COS,
+    CTX_G_D0,
+    CTX_PHI_S_T_GAMMA_S,
+    CTX_PROJ,
+    CTX_SC,
+    CTX_SEG_STICK,
+    CTX_W,
     DAMPED,
     DELTA,
     ETA0,
@@ -184,6 +193,28 @@ def _start_stick(seg, sc, x, xd, tau, beta, b, w, proj, phi_s_t_gamma_s, dstat_r
     sc[SIGN] = 0.0
     sc[BETA] = beta * (1.0 + STICK_RTOL)
     return d0
+
+
+@njit(**LEAF)
+def start_stick_in(ctx, x, xd, tau, beta, q):
+    """:func:`_start_stick` with the scene's stick-phase arrays taken from the
+    point's context ``ctx`` (:mod:`tasks.kernel.context`); returns d0."""
+    return _start_stick(
+        ctx[CTX_SEG_STICK],
+        ctx[CTX_SC],
+        x,
+        xd,
+        tau,
+        beta,
+        ctx[CTX_B],
+        ctx[CTX_W],
+        ctx[CTX_PROJ],
+        ctx[CTX_PHI_S_T_GAMMA_S],
+        ctx[CTX_DSTAT_R2],
+        ctx[CTX_G_COS],
+        ctx[CTX_G_D0],
+        q,
+    )
 
 
 @njit(**LEAF)

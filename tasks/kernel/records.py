@@ -11,17 +11,11 @@ from numba import njit
 from tasks.kernel.context import _context
 from tasks.kernel.cycle import replay_cycles
 from tasks.kernel.layout import (
-    CTX_B,
     CTX_BETA,
-    CTX_DSTAT_R2,
     CTX_F_R2,
-    CTX_G_COS,
-    CTX_G_D0,
     CTX_PHI,
     CTX_PHI_S,
-    CTX_PHI_S_T_GAMMA_S,
     CTX_PHI_T_GAMMA,
-    CTX_PROJ,
     CTX_SC,
     CTX_SEG_SLIP,
     CTX_SEG_STICK,
@@ -34,7 +28,7 @@ from tasks.kernel.layout import (
     REC_X,
     ST_STATUS,
 )
-from tasks.kernel.phases import _slip_state, _start_slip, _start_stick, _stick_state
+from tasks.kernel.phases import _slip_state, _start_slip, _stick_state, start_stick_in
 from tasks.kernel.propagation import evaluate
 
 
@@ -95,22 +89,7 @@ def sample_states(ctx, work, rec, taus):
                 x[k] = rec[j, REC_X + k]
                 xd[k] = rec[j, REC_X + n + k]
             if mode == 0:
-                d0 = _start_stick(
-                    ctx[CTX_SEG_STICK],
-                    ctx[CTX_SC],
-                    x,
-                    xd,
-                    tau0,
-                    beta,
-                    ctx[CTX_B],
-                    ctx[CTX_W],
-                    ctx[CTX_PROJ],
-                    ctx[CTX_PHI_S_T_GAMMA_S],
-                    ctx[CTX_DSTAT_R2],
-                    ctx[CTX_G_COS],
-                    ctx[CTX_G_D0],
-                    q,
-                )
+                d0 = start_stick_in(ctx, x, xd, tau0, beta, q)
             else:
                 _start_slip(
                     ctx[CTX_SEG_SLIP],

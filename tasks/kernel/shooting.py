@@ -21,14 +21,10 @@ from tasks.kernel.layout import (
     BETA,
     CTX_B,
     CTX_BETA,
-    CTX_DSTAT_R2,
     CTX_F_R2,
-    CTX_G_COS,
-    CTX_G_D0,
     CTX_P,
     CTX_PHI,
     CTX_PHI_S,
-    CTX_PHI_S_T_GAMMA_S,
     CTX_PHI_T_GAMMA,
     CTX_PROJ,
     CTX_SC,
@@ -52,7 +48,7 @@ from tasks.kernel.layout import (
     TWO_PI,
 )
 from tasks.kernel.linsolve import _solve
-from tasks.kernel.phases import _dot, _slip_state, _start_slip, _start_stick, _stick_state
+from tasks.kernel.phases import _dot, _slip_state, _start_slip, _stick_state, start_stick_in
 from tasks.kernel.propagation import evaluate
 from tasks.kernel.starts import start_phase
 
@@ -289,22 +285,7 @@ def _follow_records(X, mode, rec, nr, ctx, work, theta, out, reach):
             seg = seg_stick
             ev = eta_s
             evd = etad_s
-            d0 = _start_stick(
-                seg,
-                sc,
-                x,
-                xd,
-                tau,
-                beta,
-                b,
-                ctx[CTX_W],
-                ctx[CTX_PROJ],
-                ctx[CTX_PHI_S_T_GAMMA_S],
-                ctx[CTX_DSTAT_R2],
-                ctx[CTX_G_COS],
-                ctx[CTX_G_D0],
-                q,
-            )
+            d0 = start_stick_in(ctx, x, xd, tau, beta, q)
         else:
             seg = seg_slip
             ev = eta
