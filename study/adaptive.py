@@ -53,6 +53,7 @@ from tasks.adaptive import (
     VerificationSummary,
     disagreement_upper_bound,
 )
+from tasks.seeds import grid_neighbours, grid_offsets
 
 #: Seed of the verification sample (fixed: a rerun draws the same sample).
 VERIFY_SEED = 0
@@ -68,6 +69,9 @@ PLANES_AT_ONCE = 2
 PARTIAL_BELOW = 4
 #: Fewest points of a list cut smaller than the chunk target (its overhead stays small).
 MIN_LIST = 64
+#: Solved points (nearest first, :func:`tasks.seeds.grid_neighbours`) whose orbits are
+#: sent with a point list to seed each of its points (one contact, warm starts on).
+GIVEN_PER_POINT = 2
 #: Fraction of the points an adaptive scene is expected to simulate (planning only).
 ADAPTIVE_SIMULATED_FRACTION = 0.05
 
@@ -94,6 +98,55 @@ class PointList:
         return {"index": self.idx}
 
 
+class _Orbits:
+    """The solved moving period-1 orbits of a plane in this run (section state, phase,
+    section phase: ``final`` of :func:`tasks.classifier.classify_given`), by point.
+
+    A new point list is sent the orbits of the solved points nearest to its points
+    (the corners of the cells that asked for them), which seed their searches as
+    an earlier point of the list would: fewer periods, the same labels, the other
+    fields equal to the polish (:mod:`tasks.seeds`). Not saved: a resumed run seeds
+    only from what it solves itself.
+    """
+
+    def __init__(self, shape: tuple[int, int], reach: int) -> None:
+        self.shape = shape
+        self.row = np.full(shape[0] * shape[1], -1, dtype=np.int64)  # point -> row
+        self.flat = np.zeros(0, dtype=np.int64)  # row -> point
+        self.state = np.zeros((0, 0))
+        self.n = 0
+        self.offsets = grid_offsets(reach)
+
+    def add(self, idx: np.ndarray, final: np.ndarray) -> None:
+        """Keep the orbits of the points ``idx`` that have one (finite rows of ``final``)."""
+        ok = np.isfinite(final).all(axis=1)
+        idx, final = idx[ok], final[ok]
+        m = idx.size
+        if not m:
+            return
+        if self.n + m > self.flat.size:  # grow by doubling
+            cap = max(2 * self.flat.size, self.n + m, 1024)
+            self.flat = np.resize(self.flat, cap)
+            state = np.empty((cap, final.shape[1]))
+            if self.n:
+                state[: self.n] = self.state[: self.n]
+            self.state = state
+        self.flat[self.n : self.n + m] = idx
+        self.state[self.n : self.n + m] = final
+        self.row[idx] = np.arange(self.n, self.n + m)
+        self.n += m
+
+    def given(self, idx: np.ndarray, r: np.ndarray, beta: np.ndarray) -> tuple:
+        """``(r, beta, final)`` of the solved points nearest to the points ``idx`` (maybe
+        none), for :func:`study.compute._point_list`."""
+        rows = np.zeros(0, dtype=np.int64)
+        if self.n:
+            rows = grid_neighbours(idx, self.shape, self.row, self.offsets, GIVEN_PER_POINT)
+            rows = np.unique(rows[rows >= 0])
+        i_r, i_b = np.unravel_index(self.flat[rows], self.shape)
+        return r[i_r], beta[i_b], self.state[rows]
+
+
 @dataclass
 class _Plane:
     """The refinement of one (r, beta) plane while it runs."""
@@ -113,6 +166,7 @@ class _Plane:
     arrived: list = field(default_factory=list)  # (idx, arrays) not yet given to ``ref``
     hint_due: bool = False  # the closed-form hint is computed at the first result
     inferred: bool = False  # the inferred points are filled (during the verification)
+    orbits: _Orbits | None = None  # solved orbits that seed new point lists (warm starts)
     batches: int = 0
     reused: int = 0  # points answered from saved point lists
     computed: int = 0
@@ -363,6 +417,8 @@ class AdaptivePlan(ScenePlan):
             "r": r[i_r],
             "beta": beta[i_b],
         }
+        if pl.orbits is not None:  # the result holds the points' orbits (final)
+            task["given"] = pl.orbits.given(idx, r, beta)
         key = self._list_key(pl.tag, idx)
         pl.outstanding.add(key)
         return PointList(self.spec.name, key, idx, task, pl.sweep, pl.phase)
@@ -376,6 +432,8 @@ class AdaptivePlan(ScenePlan):
         pl = self._active[unit.sweep]
         pl.outstanding.discard(unit.key)
         pl.computed += 1
+        if pl.orbits is not None and "final" in arrays:
+            pl.orbits.add(unit.idx, arrays["final"])
         if unit.phase == "verify":
             self._put(pl, unit.idx, arrays)
             return
@@ -411,6 +469,8 @@ class AdaptivePlan(ScenePlan):
         pl = _Plane(sweep, ref, self._ident(sweep, axes), tag, time.perf_counter())
         # several contacts: no closed-form hints (analysis.contact_bounds)
         pl.hint_due = spec.hint != "none" and not contacts.is_multi(spec.structure)
+        if self.settings.get("warm", True) and not contacts.is_multi(spec.structure):
+            pl.orbits = _Orbits(spec.plane_shape, spec.coarse_step)
         self._load_saved(pl, work)
         return pl
 

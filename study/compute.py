@@ -71,8 +71,13 @@ def _grid(task: dict) -> dict:
 
 
 def _point_list(task: dict) -> dict:
-    """A point list of an adaptive plane (study.adaptive): one scene."""
-    return _classify(task["scene"], task["settings"], task["r"], task["beta"])
+    """A point list of an adaptive plane (study.adaptive): one scene.
+
+    With ``given`` (``(r, beta, final)`` of solved points near the list's points,
+    one contact) the points are also seeded from those orbits
+    (:func:`tasks.classifier.classify_given`), and the result holds ``final``,
+    the points' own orbits to seed later lists (not saved: :data:`TRANSIENT`)."""
+    return _classify(task["scene"], task["settings"], task["r"], task["beta"], task.get("given"))
 
 
 def _trace(task: dict) -> dict:
@@ -81,9 +86,18 @@ def _trace(task: dict) -> dict:
     return trace_chunk(task)
 
 
-def _classify(scene: dict, settings: dict, r: np.ndarray, beta: np.ndarray) -> dict:
+def _classify(
+    scene: dict, settings: dict, r: np.ndarray, beta: np.ndarray, given: tuple | None = None
+) -> dict:
     from tasks import classify
 
+    if given is not None:  # one contact, seeded by solved points too: their orbits back
+        from tasks.classifier import classify_given
+
+        res, final = classify_given(Scene.from_dict(scene), r, beta, given, **settings)
+        fields = point_fields(settings)
+        out = {name: np.asarray(getattr(res, name), dtype=dt) for name, dt in fields.items()}
+        return out | {"final": final}
     res = classify(Scene.from_dict(scene), r, beta, **settings)
     if scene.get("contact") == "multi":  # several contacts (study.contacts)
         from study.contacts import from_result
@@ -119,6 +133,10 @@ def _classify_points(task: dict) -> dict:
             out[name][sel] = part[name]
     return out
 
+
+#: Arrays a unit's result may hold for its plan that are not saved with it (the orbits
+#: that seed later point lists of an adaptive plane: :func:`_point_list`).
+TRANSIENT = ("final",)
 
 #: The computation of each kind of unit (:mod:`study.plans`).
 KINDS = {"grid": _grid, "points": _classify_points, "adaptive": _point_list, "trace": _trace}

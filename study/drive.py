@@ -22,7 +22,7 @@ from concurrent.futures import CancelledError
 from contextlib import suppress
 from dataclasses import dataclass
 
-from study.compute import compute_chunk
+from study.compute import TRANSIENT, compute_chunk
 from study.connect import call_within
 from study.errors import StudyFailed
 from study.plans import WAIT, ScenePlan
@@ -166,7 +166,8 @@ class _Window:
         """Queue one result for saving (:mod:`study.saving`), hand it to its plan, count it."""
         _, p, unit = self.inflight.pop(fut.key)
         extra = getattr(unit, "saved_with", None)  # e.g. an adaptive point list's indices
-        self.saver.put(p, unit, arrays if extra is None else arrays | extra)
+        saved = {k: v for k, v in arrays.items() if k not in TRANSIENT}  # for the plan only
+        self.saver.put(p, unit, saved if extra is None else saved | extra)
         fut.release()
         seconds = float(arrays["seconds"])
         self.done.compute_seconds += seconds

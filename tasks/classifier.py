@@ -11,7 +11,7 @@ from tasks.fidelity import Settings, resolve
 from tasks.model import SceneModes, scene_modes
 from tasks.result import DESIGN_FIELDS, FIELDS, ClassifyResult
 from tasks.scene import Scene
-from tasks.seeds import warm_seeds
+from tasks.seeds import can_seed, warm_seeds
 
 _IC_CODES = {name: code for code, name in regimes.INITIAL_CONDITIONS.items()}
 
@@ -135,6 +135,37 @@ def classify(
         from tasks.multicontact import classify_multi
 
         return classify_multi(scene, r, beta, fidelity, **settings)
+    return _classify(scene, r, beta, fidelity, settings, None)[0]
+
+
+def classify_given(
+    scene: Scene,
+    r: np.ndarray,
+    beta: np.ndarray,
+    given: tuple[np.ndarray, np.ndarray, np.ndarray] | None,
+    fidelity: str = "balanced",
+    **settings: object,
+) -> tuple[ClassifyResult, np.ndarray]:
+    """:func:`classify` of a one-contact ``scene``, warm-started also from orbits solved
+    outside the call, and the points' own orbits for later calls.
+
+    ``given`` is ``(r, beta, final)`` of points solved before (None: none): their
+    ``final`` rows as this function returns them. With warm starts on, each point
+    is seeded by the nearest of the earlier points of the call and the given
+    points (:func:`tasks.seeds.warm_seeds`); the labels are those of
+    :func:`classify`, the other fields agree with it to the polish (about 1e-9
+    of their scale), ``cycles`` excepted.
+
+    Returns the result and ``final``: ``(n_points, 2 N + 2)``, each point's
+    section state, phase and section phase where it converged to a moving
+    period-1 orbit that can seed a neighbour (NaN rows elsewhere, and everywhere
+    without warm starts).
+    """
+    return _classify(scene, r, beta, fidelity, settings, given)
+
+
+def _classify(scene, r, beta, fidelity, settings, given):
+    """:func:`classify_given` (``settings``: the overrides, a dict)."""
     if not isinstance(scene, Scene):
         raise ValueError(f"scene: must be a tasks.Scene, got {type(scene).__name__}")
     if not isinstance(fidelity, str):
@@ -154,17 +185,23 @@ def classify(
     # the design quantities of the first start's orbit, on the orbit check's replay
     samples = kernel.DESIGN_SAMPLES if resolved.design else 0
     # warm starts: the held start seeded by earlier points of the call (tasks.seeds)
+    n = scene_args[0].shape[0]
+    g_r, g_beta, g_final = given if given is not None else (None, None, np.zeros((0, 2 * n + 2)))
     if first[-1]:
-        seeds = warm_seeds(flat_r, flat_beta, float(scene_args[5][-1]))
+        seeds = warm_seeds(flat_r, flat_beta, float(scene_args[5][-1]), g_r, g_beta)
     else:
         seeds = np.full((flat_r.size, 0), -1, dtype=np.int64)
-    out, _, design = kernel.run_points_seeded(flat_r, flat_beta, scene_args, first, samples, seeds)
+    g_final = np.ascontiguousarray(g_final, dtype=np.float64).reshape(-1, 2 * n + 2)
+    out, final, design = kernel.run_points_given(
+        flat_r, flat_beta, scene_args, first, samples, seeds, g_final
+    )
+    final[~(first[-1] & can_seed(out, flat_beta))] = np.nan
     design = design if resolved.design else None
     others = [
         kernel.run_points(flat_r, flat_beta, scene_args, settings_args(resolved, c))[0]
         for c in codes[1:]
     ]
-    return result_from_kernel(out, shape, design, scene.contact == "base", others, codes)
+    return result_from_kernel(out, shape, design, scene.contact == "base", others, codes), final
 
 
 def start_codes(settings: Settings) -> list[int]:

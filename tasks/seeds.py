@@ -23,6 +23,9 @@ import math
 import numpy as np
 from scipy.spatial import cKDTree
 
+from tasks.kernel.layout import OUT_ASYMPTOTIC, OUT_CONVERGED, OUT_PERIOD, OUT_REGIME
+from tasks.regimes import CONTINUOUS, STICK_SLIP
+
 #: Largest difference in the fastest mode's phase over one period (radians), and in
 #: ``ln beta``, between a point and a neighbour that seeds it.
 WARM_PHASE = 1.0
@@ -43,7 +46,13 @@ def warm_coordinates(r: np.ndarray, beta: np.ndarray, lambda_max: float) -> np.n
     return np.stack([phase, log_beta], axis=1)
 
 
-def warm_seeds(r: np.ndarray, beta: np.ndarray, lambda_max: float) -> np.ndarray:
+def warm_seeds(
+    r: np.ndarray,
+    beta: np.ndarray,
+    lambda_max: float,
+    given_r: np.ndarray | None = None,
+    given_beta: np.ndarray | None = None,
+) -> np.ndarray:
     """Candidate seeds of every point: ``(n, CANDIDATES)`` indices of earlier points.
 
     Row ``i`` lists the points before ``i`` (index below ``i``) within distance 1
@@ -51,21 +60,83 @@ def warm_seeds(r: np.ndarray, beta: np.ndarray, lambda_max: float) -> np.ndarray
     differences), nearest first, padded with -1. Points at ``beta = 0`` neither
     seed nor are seeded (linear, no search). ``lambda_max`` is the largest
     eigenvalue of the sliding system (``scene_modes(...).kernel_args()[5][-1]``).
+
+    ``given_r``, ``given_beta``: points solved outside the call (moving period-1
+    orbits, e.g. the corners of an adaptive map's cells) that may seed any point
+    of the call, ranked with the earlier points by distance; given point ``k``
+    is listed as ``-2 - k`` (:func:`tasks.kernel.point.run_points_given`).
     """
     r = np.asarray(r, dtype=np.float64).ravel()
     beta = np.asarray(beta, dtype=np.float64).ravel()
     n = r.size
     seeds = np.full((n, CANDIDATES), -1, dtype=np.int64)
     live = np.flatnonzero(beta > 0.0)
-    if live.size < 2:
+    m = 0 if given_r is None else np.asarray(given_r).size
+    if live.size < (2 if m == 0 else 1):
         return seeds
     coords = warm_coordinates(r[live], beta[live], lambda_max)
-    k = min(_LOOK, live.size)
-    dist, near = cKDTree(coords).query(coords, k=k, p=np.inf)
+    index = live
+    if m:
+        g_r = np.asarray(given_r, dtype=np.float64).ravel()
+        g_beta = np.asarray(given_beta, dtype=np.float64).ravel()
+        coords = np.concatenate([coords, warm_coordinates(g_r, g_beta, lambda_max)])
+        index = np.concatenate([live, -2 - np.arange(m)])  # given: -2 - k
+    k = min(_LOOK + min(m, CANDIDATES), index.size)
+    dist, near = cKDTree(coords).query(coords[: live.size], k=k, p=np.inf)
     dist, near = dist.reshape(live.size, k), near.reshape(live.size, k)
-    index = live[near]  # the neighbours' indices in the call, nearest first
-    ok = (dist <= 1.0) & (index < live[:, None])
+    index = index[near]  # the neighbours' indices in the call (or given), nearest first
+    earlier = (index >= 0) & (index < live[:, None])
+    ok = (dist <= 1.0) & (earlier | (index <= -2))
     first = np.argsort(~ok, axis=1, kind="stable")[:, :CANDIDATES]  # kept, nearest first
     taken = np.where(np.take_along_axis(ok, first, 1), np.take_along_axis(index, first, 1), -1)
     seeds[live, : taken.shape[1]] = taken
     return seeds
+
+
+def can_seed(out: np.ndarray, beta: np.ndarray) -> np.ndarray:
+    """Which points' orbits can seed a neighbour: verified moving period-1 orbits at
+    ``beta > 0`` (``out``: the kernel's ``(n, N_OUT)`` results; the kernel's own
+    test, ``tasks.kernel.point._seeds_next``)."""
+    regime = out[:, OUT_REGIME]
+    return (
+        (out[:, OUT_CONVERGED] == 1.0)
+        & (out[:, OUT_PERIOD] == 1.0)
+        & (out[:, OUT_ASYMPTOTIC] == 0.0)
+        & ((regime == STICK_SLIP) | (regime == CONTINUOUS))
+        & (np.asarray(beta) > 0.0)
+    )
+
+
+def grid_offsets(reach: int) -> np.ndarray:
+    """``(m, 2)`` grid offsets ``(di, dj)`` at which an adaptive map's solved points
+    are looked for around a new point, nearest first: every combination of 0 and
+    the powers of two up to ``reach`` (the coarse step) along each axis and either
+    sign, where the corners of the cells the refinement splits lie."""
+    steps = [0]
+    d = 1
+    while d <= max(1, reach):
+        steps += [d, -d]
+        d *= 2
+    off = np.array([(a, b) for a in steps for b in steps if a or b], dtype=np.int64)
+    size = np.abs(off)
+    order = np.lexsort((size.sum(axis=1), size.max(axis=1)))
+    return off[order]
+
+
+def grid_neighbours(
+    idx: np.ndarray, shape: tuple[int, int], row: np.ndarray, offsets: np.ndarray, k: int
+) -> np.ndarray:
+    """The ``k`` nearest solved points of each grid point: ``(len(idx), k)`` rows of
+    ``row`` (-1 padding).
+
+    ``idx`` are flat indices on a grid of ``shape``; ``row`` maps every flat index
+    to the row of its solved orbit (-1: none); ``offsets`` from :func:`grid_offsets`,
+    nearest first."""
+    i, j = np.unravel_index(np.asarray(idx, dtype=np.int64), shape)
+    ii = i[:, None] + offsets[None, :, 0]
+    jj = j[:, None] + offsets[None, :, 1]
+    inside = (ii >= 0) & (ii < shape[0]) & (jj >= 0) & (jj < shape[1])
+    flat = np.where(inside, ii * shape[1] + jj, 0)
+    found = np.where(inside, row[flat], -1)
+    first = np.argsort(found < 0, axis=1, kind="stable")[:, :k]
+    return np.take_along_axis(found, first, 1)

@@ -577,6 +577,14 @@ def run_points_design(r, beta, scene, settings, samples):
 
 @njit(cache=True, nogil=True)
 def run_points_seeded(r, beta, scene, settings, samples, seeds):
+    """:func:`run_points_given` with no given seeds: ``seeds`` lists earlier points of
+    the call only. Returns ``(out, final, design)``."""
+    given = np.empty((0, 2 * scene[0].shape[0] + 2))
+    return run_points_given(r, beta, scene, settings, samples, seeds, given)
+
+
+@njit(cache=True, nogil=True)
+def run_points_given(r, beta, scene, settings, samples, seeds, given):
     """Classify every point ``(r[i], beta[i])`` in order, warm-started where
     ``seeds`` says, and with ``samples > 0`` compute the design quantities of
     its orbit.
@@ -585,17 +593,20 @@ def run_points_seeded(r, beta, scene, settings, samples, seeds):
     ``seeds`` lists earlier points (indices below ``i``, nearest first, -1
     padding; :func:`tasks.seeds.warm_seeds`) whose orbit may seed point ``i``:
     the first of them that converged to a moving period-1 orbit seeds a warm
-    start (:func:`warm_point`). A point the warm start does not settle, or
-    whose orbit then fails the orbit invariant, is classified from the held
-    start (:func:`simulate_point`) exactly as without warm starts, and its
-    period-1 motion is then polished (:func:`polish_point`) as the warm start's
-    is: every moving period-1 orbit is the fixed point of its map to
-    ``POLISH_RTOL``, so the fields do not depend on which point seeded which
-    (and the labels never do: :func:`warm_point`). The warm start's periods
-    are counted in ``cycles`` (the one field that depends on the seeds);
-    ``initial_condition`` stays the held start, the reference the steady
-    state is the limit of. Without ``warm`` the seeds are ignored and nothing
-    is polished.
+    start (:func:`warm_point`). An entry ``-2 - k`` names row ``k`` of ``given``
+    instead: the ``final`` row (section state, phase, section phase) of a moving
+    period-1 orbit solved outside the call (e.g. a corner of an adaptive map's
+    cell, :mod:`tasks.seeds`), which seeds the point as an earlier point would.
+    A point the warm start does not settle, or whose orbit then fails the orbit
+    invariant, is classified from the held start (:func:`simulate_point`)
+    exactly as without warm starts, and its period-1 motion is then polished
+    (:func:`polish_point`) as the warm start's is: every moving period-1 orbit
+    is the fixed point of its map to ``POLISH_RTOL``, so the fields do not
+    depend on which point seeded which (and the labels never do:
+    :func:`warm_point`). The warm start's periods are counted in ``cycles``
+    (the one field that depends on the seeds); ``initial_condition`` stays the
+    held start, the reference the steady state is the limit of. Without
+    ``warm`` the seeds are ignored and nothing is polished.
 
     The design quantities (:func:`tasks.kernel.design.orbit_design_recorded`,
     ``samples`` per cycle at least) are computed from the records of the orbit
@@ -621,15 +632,20 @@ def run_points_seeded(r, beta, scene, settings, samples, seeds):
         rec = np.zeros((0, REC_X + 2 * n))
         nr = 0
         source = -1
+        outside = -1
         if warm:
             for c in range(seeds.shape[1]):
                 j = seeds[i, c]
                 if 0 <= j < i and seedable[j]:
                     source = j
                     break
-        if source >= 0:
+                if j <= -2 and -2 - j < given.shape[0]:
+                    outside = -2 - j
+                    break
+        if source >= 0 or outside >= 0:
+            seed = final[source] if source >= 0 else given[outside]
             accepted, spent = warm_point(
-                r[i], beta[i], scene, settings, out[i], final[i], final[source], keep, kept
+                r[i], beta[i], scene, settings, out[i], final[i], seed, keep, kept
             )
             if accepted:
                 rec, nr = _check_orbit(
