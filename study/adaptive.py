@@ -67,8 +67,10 @@ PLANES_AT_ONCE = 2
 #: A point list shorter than the chunk target is handed out only while fewer than this
 #: many point lists of its plane are in flight (else the ready points wait to fill one).
 PARTIAL_BELOW = 4
-#: Fewest points of a list cut smaller than the chunk target (its overhead stays small).
-MIN_LIST = 64
+#: Fewest points of a list cut smaller than the chunk target (its overhead stays small:
+#: 256 rather than 64 halves the point lists of a 1000 x 500 map, and its CPU falls by
+#: 10-20 %, benchmarks/bench_adaptive.py --cluster).
+MIN_LIST = 256
 #: Solved points (nearest first, :func:`tasks.seeds.grid_neighbours`) whose orbits are
 #: sent with a point list to seed each of its points (one contact, warm starts on).
 GIVEN_PER_POINT = 2
