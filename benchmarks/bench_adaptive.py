@@ -31,7 +31,11 @@ the CPU seconds of both (this process and the workers: a busy machine stretches
 the wall seconds of one run more than the other's, not the CPU seconds) and
 their ratio, the labels equal to the dense grid's and the verification sample;
 ``--barriers`` adds the old wave-by-wave refinement
-(``study.adaptive.AdaptivePlan.barriers``), ``--no-dense`` skips the dense grids:
+(``study.adaptive.AdaptivePlan.barriers``), ``--before`` the adaptive study as it
+was before its point lists were seeded from the solved orbits of their cells'
+corners and cut at 256 points rather than 64 (:data:`BEFORE`; run just before the
+current one, under the same load; "same map" compares the labels and simulated
+points), ``--no-dense`` skips the dense grids:
 
     python benchmarks/bench_adaptive.py --cluster --size 1000x500 --scenes fig04:gamma1_kappa1
 
@@ -185,7 +189,14 @@ def _cpu(client) -> float:
     return time.process_time() + sum(workers.values())
 
 
-def _run(text: str, folder: Path, client, barriers: bool = False) -> tuple[float, dict, str]:
+#: ``--before``: the adaptive study as it was before its point lists were seeded from
+#: the solved orbits of their cells' corners and cut at 256 points (64).
+BEFORE = {"seed_lists": False, "min_list": 64}
+
+
+def _run(
+    text: str, folder: Path, client, barriers: bool = False, before: bool = False
+) -> tuple[float, dict, str]:
     """Wall seconds, regime and simulated arrays (and attributes, and ``cpu``: the CPU
     seconds of this process and the workers), and the log of one study run
     (``client`` None: as ``study run`` would, threads of this process)."""
@@ -201,6 +212,10 @@ def _run(text: str, folder: Path, client, barriers: bool = False) -> tuple[float
     out = folder / f"bench-{time.monotonic_ns()}.nc"
     log = io.StringIO()
     AdaptivePlan.barriers = barriers
+    defaults = {name: getattr(AdaptivePlan, name) for name in BEFORE}
+    if before:
+        for name, value in BEFORE.items():
+            setattr(AdaptivePlan, name, value)
     try:
         cpu = _cpu(client)
         t = time.perf_counter()
@@ -209,6 +224,8 @@ def _run(text: str, folder: Path, client, barriers: bool = False) -> tuple[float
         cpu = _cpu(client) - cpu
     finally:
         AdaptivePlan.barriers = False
+        for name, value in defaults.items():
+            setattr(AdaptivePlan, name, value)
     with xr.open_dataset(out) as ds:
         arrays = {k: ds[k].values for k in ("regime", "simulated") if k in ds}
         arrays["attrs"] = dict(ds.attrs)
@@ -260,6 +277,8 @@ def cluster_main(args, n_r: int, n_beta: int) -> int:
         )
         print("|" + "---|" * 13)
         for sc in scenes:
+            if args.before:  # just before the current study: the same load
+                before = _run(text(sc, (n_r, n_beta), mode), folder, client, before=True)
             sec, arr, log = _run(text(sc, (n_r, n_beta), mode), folder, client)
             at = arr["attrs"]
             lists = sum(int(m) for m in re.findall(r"(\d+) point lists computed", log))
@@ -280,6 +299,21 @@ def cluster_main(args, n_r: int, n_beta: int) -> int:
                 f"| {cpu_ratio} | {equal} | {verify} |",
                 flush=True,
             )
+            if args.before:
+                b_sec, b_arr, b_log = before
+                b_lists = sum(int(m) for m in re.findall(r"(\d+) point lists computed", b_log))
+                same = np.array_equal(b_arr["regime"], arr["regime"]) and np.array_equal(
+                    b_arr["simulated"], arr["simulated"]
+                )
+                b_ratio = b_cpu_ratio = "-"
+                if not args.no_dense:
+                    b_ratio = f"{d_sec / b_sec:.1f}"
+                    b_cpu_ratio = f"{d_arr['cpu'] / b_arr['cpu']:.1f}"
+                print(
+                    f"| {sc['name']}, before | | | | {b_lists} | {b_sec:.1f} | | {b_ratio} "
+                    f"| {b_arr['cpu']:.1f} | | {b_cpu_ratio} | same map: {same} | |",
+                    flush=True,
+                )
             if args.barriers:
                 b_sec, b_arr, _ = _run(text(sc, (n_r, n_beta), mode), folder, client, True)
                 same = np.array_equal(b_arr["regime"], arr["regime"]) and np.array_equal(
@@ -417,6 +451,11 @@ def main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument("--no-dense", action="store_true", help="--cluster: adaptive studies only")
     ap.add_argument("--barriers", action="store_true", help="--cluster: the old waves too")
+    ap.add_argument(
+        "--before",
+        action="store_true",
+        help="--cluster: also the adaptive study without corner seeds, lists of 64",
+    )
     ap.add_argument("--example", type=int, default=0, help="time the CLI on the example N times")
     args = ap.parse_args(argv)
     n_r, n_beta = (int(x) for x in args.size.lower().split("x"))

@@ -187,6 +187,11 @@ class AdaptivePlan(ScenePlan):
     #: True: the old wave-by-wave barriers (new points only once every point list of
     #: the plane has arrived), kept for ``benchmarks/bench_adaptive.py``; same result.
     barriers: bool = False
+    #: False: no solved orbits sent with the point lists (:class:`_Orbits`), as before
+    #: they were (``benchmarks/bench_adaptive.py --before``); same labels.
+    seed_lists: bool = True
+    #: Fewest points of a list cut smaller than the chunk target (:data:`MIN_LIST`).
+    min_list: int = MIN_LIST
 
     @classmethod
     def build(cls, spec: SceneSpec, study: Study) -> AdaptivePlan:
@@ -377,11 +382,11 @@ class AdaptivePlan(ScenePlan):
     def _list_size(self, pl: _Plane) -> int:
         """Points per list: the chunk target, or fewer when few points are ready, so that
         they still fill :data:`PARTIAL_BELOW` lists (workers busy, short dependency
-        chains) of at least :data:`MIN_LIST` points (with barriers: the chunk target)."""
+        chains) of at least :attr:`min_list` points (with barriers: the chunk target)."""
         target = max(1, self.block[0])
         if self.barriers:
             return target
-        return min(target, max(MIN_LIST, -(-pl.todo.size // PARTIAL_BELOW)))
+        return min(target, max(self.min_list, -(-pl.todo.size // PARTIAL_BELOW)))
 
     def _replay(self, pl: _Plane) -> None:
         """Move the refinement's ready points to ``todo``, answering at once those a saved
@@ -471,7 +476,8 @@ class AdaptivePlan(ScenePlan):
         pl = _Plane(sweep, ref, self._ident(sweep, axes), tag, time.perf_counter())
         # several contacts: no closed-form hints (analysis.contact_bounds)
         pl.hint_due = spec.hint != "none" and not contacts.is_multi(spec.structure)
-        if self.settings.get("warm", True) and not contacts.is_multi(spec.structure):
+        warm = self.settings.get("warm", True) and self.seed_lists
+        if warm and not contacts.is_multi(spec.structure):
             pl.orbits = _Orbits(spec.plane_shape, spec.coarse_step)
         self._load_saved(pl, work)
         return pl
