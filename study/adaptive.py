@@ -7,7 +7,11 @@ interface every plan shares): point lists of about ``task_seconds`` of work
 (the chunk target; a smaller list only when few of the plane's lists are in
 flight, :data:`PARTIAL_BELOW`, so workers never wait for a full one), each
 keyed by the plane, its length and a hash of its points' r and beta values, and
-saved in the work folder with the points' indices as it arrives. The result
+saved in the work folder with the points' indices as it arrives. Each point
+list goes out with the solved orbits of the points nearest to its points (the
+corners of the cells that asked for them, :class:`_Orbits`), which seed their
+searches (warm starts, :mod:`tasks.seeds`): fewer periods, the same labels, the
+other fields equal to the polish. The result
 does not depend on the order in which point lists arrive, so a rerun after an
 interruption loads every saved point list of a plane, answers the refinement's
 requests from them and computes only the missing points. When a plane (one
