@@ -134,6 +134,38 @@ def evaluate(seg, sc, t, eta, etad):
 
 
 @njit(**LEAF)
+def evaluate_start(seg, sc, eta, etad):
+    """:func:`evaluate` at the phase start (``t = 0``) without its trigonometry.
+
+    At ``t = 0`` every increment of the closed form vanishes, so the state is
+    ``(eta0, eta0')`` and ``y = y0``, ``y' = -A sin(tau0) + sum_k alpha_k eta0'_k +
+    delta_k eta0''_k`` (``eta0'' = -Omega^2 eta0 + a cos(tau0) + c``, Eq. (1)): the
+    same values as ``evaluate(seg, sc, 0.0, eta, etad)`` to the last bit (non-finite
+    data propagate as there).
+    """
+    if sc[DAMPED] != 0.0:
+        return evaluate_damped(seg, sc, 0.0, eta, etad)
+    ct0 = sc[COS_TAU0]
+    amp = sc[OBS_COS]
+    y = sc[OBS0] - 0.0 * amp
+    dy = -amp * sc[SIN_TAU0]
+    for k in range(seg.shape[1]):
+        w = seg[OMEGA, k]
+        e0 = seg[ETA0, k]
+        v0 = seg[ETAD0, k]
+        a = seg[LOAD_COS, k]
+        c = seg[LOAD_CONST, k]
+        zero = 0.0 * (e0 + v0 + a + c + w)  # the increments (NaN where evaluate's are)
+        ek = e0 + zero
+        vk = v0 + zero
+        eta[k] = ek
+        etad[k] = vk
+        y += seg[ALPHA, k] * zero + seg[DELTA, k] * zero
+        dy += seg[ALPHA, k] * vk + seg[DELTA, k] * (-w * w * ek + a * ct0 + c)
+    return y, dy
+
+
+@njit(**LEAF)
 def event_function(seg, sc, t, eta, etad):
     """``(F, F')`` at t: ``s y`` while sliding, ``beta - |y|`` while stuck.
 
