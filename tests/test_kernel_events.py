@@ -1,4 +1,5 @@
-"""The event search's own shortcuts (tasks.kernel.events, tasks.kernel.propagation).
+"""The event search's shortcuts and the sampled range of a phase (tasks.kernel.events,
+tasks.kernel.propagation).
 
 Truths: the closed form itself (:func:`tasks.kernel.propagation.evaluate`) at the
 same times, and the first zero of the event function located independently by
@@ -33,7 +34,7 @@ from tasks.kernel.layout import (
     SIN_TAU0,
     WORK_CAP,
 )
-from tasks.kernel.propagation import evaluate_start
+from tasks.kernel.propagation import evaluate_start, observable_range
 from tasks.model import scene_modes
 
 SCENES = [Scene("ground", 2, 1, gamma=1.0, kappa=0.5), Scene("ground", 5, 2)]
@@ -123,3 +124,28 @@ def test_located_events_and_the_state_left_at_them(scene):
         assert y == sc[LAST_Y]
         assert np.array_equal(eta, e2) and np.array_equal(etad, ed2)
     assert found_any >= 10
+
+
+@pytest.mark.parametrize("scene", SCENES)
+@pytest.mark.parametrize("n", [2, 17, 4096])
+def test_observable_range_by_rotation_matches_the_closed_form(scene, n):
+    """The uniformly sampled range of the observable (rotations, re-anchored every
+    ANCHOR samples) against the closed form evaluated at every sample."""
+    rng = np.random.default_rng(5)
+    scratch = np.zeros((DIP_STACK, 6))
+    for seg, sc, _ in _phases(scene, rng, 3):
+        m = seg.shape[1]
+        eta, etad = np.zeros(m), np.zeros(m)
+        dt = rng.uniform(0.5, 8.0) / (n + 1)
+        ys = np.array([evaluate(seg, sc, i * dt, eta, etad)[0] for i in range(1, n + 1)])
+        ymin, ymax, finite = observable_range(seg, sc, dt, n, eta, etad, scratch)
+        scale = np.abs(ys).max() + np.abs(seg[ETA0]).sum() + np.abs(seg[ETAD0]).sum()
+        assert finite
+        assert abs(ymin - ys.min()) <= 1e-13 * scale
+        assert abs(ymax - ys.max()) <= 1e-13 * scale
+        # too few scratch rows: every sample evaluated, the same values exactly
+        assert observable_range(seg, sc, dt, n, eta, etad, scratch[: m - 1]) == (
+            ys.min(),
+            ys.max(),
+            True,
+        )
