@@ -99,6 +99,22 @@ def _increments(w, e0, v0, a, c, s1, c1, sh, ch, sint, ct0, st0, h):
     return d_eta, d_etad
 
 
+@njit(inline="always", cache=True)
+def _mode_state(seg, k, d_eta, d_etad, ctau, eta, etad):
+    """Write mode k's state (its start plus the increments) into ``eta, etad`` and
+    return its terms of ``(y, y')`` (``eta'' = -Omega^2 eta + a cos(tau) + c``, Eq. (1))."""
+    w = seg[OMEGA, k]
+    ek = seg[ETA0, k] + d_eta
+    vk = seg[ETAD0, k] + d_etad
+    eta[k] = ek
+    etad[k] = vk
+    return (
+        seg[ALPHA, k] * d_eta + seg[DELTA, k] * d_etad,
+        seg[ALPHA, k] * vk
+        + seg[DELTA, k] * (-w * w * ek + seg[LOAD_COS, k] * ctau + seg[LOAD_CONST, k]),
+    )
+
+
 @njit(**LEAF)
 def evaluate(seg, sc, t, eta, etad):
     """State and observable of a phase at time ``t`` after its start.
@@ -132,12 +148,9 @@ def evaluate(seg, sc, t, eta, etad):
         a = seg[LOAD_COS, k]
         c = seg[LOAD_CONST, k]
         d_eta, d_etad = _increments(w, e0, v0, a, c, s1, c1, sh, ch, sint, ct0, st0, h)
-        ek = e0 + d_eta
-        vk = v0 + d_etad
-        eta[k] = ek
-        etad[k] = vk
-        y += seg[ALPHA, k] * d_eta + seg[DELTA, k] * d_etad
-        dy += seg[ALPHA, k] * vk + seg[DELTA, k] * (-w * w * ek + a * ctau + c)
+        y_k, dy_k = _mode_state(seg, k, d_eta, d_etad, ctau, eta, etad)
+        y += y_k
+        dy += dy_k
     return y, dy
 
 
@@ -158,19 +171,22 @@ def evaluate_start(seg, sc, eta, etad):
     y = sc[OBS0] - 0.0 * amp
     dy = -amp * sc[SIN_TAU0]
     for k in range(seg.shape[1]):
-        w = seg[OMEGA, k]
-        e0 = seg[ETA0, k]
-        v0 = seg[ETAD0, k]
-        a = seg[LOAD_COS, k]
-        c = seg[LOAD_CONST, k]
-        zero = 0.0 * (e0 + v0 + a + c + w)  # the increments (NaN where evaluate's are)
-        ek = e0 + zero
-        vk = v0 + zero
-        eta[k] = ek
-        etad[k] = vk
-        y += seg[ALPHA, k] * zero + seg[DELTA, k] * zero
-        dy += seg[ALPHA, k] * vk + seg[DELTA, k] * (-w * w * ek + a * ct0 + c)
+        # the increments: 0 (NaN where evaluate's are)
+        zero = 0.0 * (
+            seg[ETA0, k] + seg[ETAD0, k] + seg[LOAD_COS, k] + seg[LOAD_CONST, k] + seg[OMEGA, k]
+        )
+        y_k, dy_k = _mode_state(seg, k, zero, zero, ct0, eta, etad)
+        y += y_k
+        dy += dy_k
     return y, dy
+
+
+@njit(inline="always", cache=True)
+def _extend(y, ymin, ymax, finite):
+    """The range ``(ymin, ymax, finite)`` with the sample y (NaN left out, ``finite`` False)."""
+    if y != y:
+        return ymin, ymax, False
+    return min(ymin, y), max(ymax, y), finite
 
 
 #: Samples between exact re-evaluations of the rotations in :func:`observable_range`
@@ -199,12 +215,7 @@ def observable_range(seg, sc, dt, n, eta, etad, scratch):
     if sc[DAMPED] != 0.0 or scratch.shape[0] < m or scratch.shape[1] < 4:
         for i in range(1, n + 1):
             y, _ = evaluate(seg, sc, i * dt, eta, etad)
-            if y != y:
-                finite = False
-            if y < ymin:
-                ymin = y
-            if y > ymax:
-                ymax = y
+            ymin, ymax, finite = _extend(y, ymin, ymax, finite)
         return ymin, ymax, finite
     hd = 0.5 * dt
     sd0 = math.sin(hd)
@@ -257,12 +268,7 @@ def observable_range(seg, sc, dt, n, eta, etad, scratch):
                 h,
             )
             y += seg[ALPHA, k] * d_eta + seg[DELTA, k] * d_etad
-        if y != y:
-            finite = False
-        if y < ymin:
-            ymin = y
-        if y > ymax:
-            ymax = y
+        ymin, ymax, finite = _extend(y, ymin, ymax, finite)
     return ymin, ymax, finite
 
 
