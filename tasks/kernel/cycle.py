@@ -27,6 +27,8 @@ from tasks.kernel.layout import (
     EV_STOP,
     EV_UNSTICK,
     EVALS,
+    LAST_T,
+    LAST_Y,
     LEAF,
     N_STATS,
     REC_G,
@@ -159,12 +161,16 @@ def run_cycle(x, xd, mode, stick_start, stats, ctx, work, rec, rec_n, tau_start,
                 g_d0,
                 q,
             )
+            sc[LAST_T] = np.nan
             if never_unsticks(seg_stick, sc):
                 stats[ST_FOREVER] = 1.0
                 t, found = remaining, False
             else:
                 t, found = next_event(seg_stick, sc, remaining, h_stick, tol, eta_s, etad_s, stack)
-            g, _ = evaluate(seg_stick, sc, t, eta_s, etad_s)
+            if sc[LAST_T] == t:  # the search's last evaluation: the state is at t already
+                g = sc[LAST_Y]
+            else:
+                g, _ = evaluate(seg_stick, sc, t, eta_s, etad_s)
             _stick_state(phi_s, T, w, d0, eta_s, etad_s, q, x, xd, seg_stick[ETAD_OFF])
             stats[ST_STUCK_TIME] += t
             if t > stats[ST_LONGEST]:
@@ -180,8 +186,10 @@ def run_cycle(x, xd, mode, stick_start, stats, ctx, work, rec, rec_n, tau_start,
         else:
             s = float(mode)
             _start_slip(seg_slip, sc, x, xd, tau, s, v0, beta, f_r2, phi_t_gamma)
+            sc[LAST_T] = np.nan
             t, found = next_event(seg_slip, sc, remaining, h_slip, tol, eta, etad, stack)
-            evaluate(seg_slip, sc, t, eta, etad)
+            if sc[LAST_T] != t:  # (else the search's last evaluation left the state at t)
+                evaluate(seg_slip, sc, t, eta, etad)
             _slip_state(phi, eta, etad, x, xd, seg_slip[ETAD_OFF])
             if t > stats[ST_LONGEST]:
                 stats[ST_LONGEST] = t

@@ -31,6 +31,8 @@ from tasks.kernel.layout import (
     KIND,
     KIND_SLIP,
     KIND_STICK,
+    LAST_T,
+    LAST_Y,
     LEAF,
     LOAD_CONST,
     LOAD_COS,
@@ -41,7 +43,7 @@ from tasks.kernel.layout import (
     SIN_TAU0,
     WORK_CAP,
 )
-from tasks.kernel.propagation import derivative_bounds, evaluate, start_taylor
+from tasks.kernel.propagation import derivative_bounds, evaluate, evaluate_start, start_taylor
 
 # Rows of the bisection stack of :func:`_dip` (``work[5]`` of a point's context):
 # brackets still to search, at most one per halving level.
@@ -163,9 +165,23 @@ def _solve_bracket(seg, sc, lo, hi, f_lo, d_lo, y_lo, dy_lo, f_hi, d_hi, tol, et
 
 @njit(**LEAF)
 def _observe(seg, sc, t, eta, etad):
-    """``(y, y')`` of the phase's observable at t, counting the work in ``sc[EVALS]``."""
+    """``(y, y')`` of the phase's observable at t, counting the work in ``sc[EVALS]``;
+    ``eta, etad`` then hold the state at t (``sc[LAST_T]``, ``sc[LAST_Y]``: t and y)."""
     sc[EVALS] += 1.0 + seg.shape[1]
-    return evaluate(seg, sc, t, eta, etad)
+    y, dy = evaluate(seg, sc, t, eta, etad)
+    sc[LAST_T] = t
+    sc[LAST_Y] = y
+    return y, dy
+
+
+@njit(**LEAF)
+def _observe_start(seg, sc, eta, etad):
+    """:func:`_observe` at the phase start (:func:`evaluate_start`, the same values)."""
+    sc[EVALS] += 1.0 + seg.shape[1]
+    y, dy = evaluate_start(seg, sc, eta, etad)
+    sc[LAST_T] = 0.0
+    sc[LAST_Y] = y
+    return y, dy
 
 
 @njit(**LEAF)
@@ -386,7 +402,7 @@ def next_event(seg, sc, t_end, h, tol, eta, etad, stack):
     a touching zero. If the work budget ran out, ``(t, False)`` with
     ``sc[EVALS] > sc[WORK_CAP]``.
     """
-    y0, dy0 = _observe(seg, sc, 0.0, eta, etad)
+    y0, dy0 = _observe_start(seg, sc, eta, etad)
     f0, d0 = _event_value(sc, y0, dy0)
     slope, curvature = derivative_bounds(seg, sc, t_end)
     ta = 0.0

@@ -28,8 +28,12 @@ OMEGA, ETA0, ETAD0, LOAD_COS, LOAD_CONST, ALPHA, DELTA, DAMP, ETAD_OFF = range(9
 N_ROWS = 9
 # Entries of the scalar segment array ``sc``. DAMPED: 1.0 when the scene is damped
 # (both phases then take tasks.kernel.damping), 0.0 for the undamped code path.
-TAU0, COS_TAU0, SIN_TAU0, OBS_COS, OBS0, KIND, SIGN, BETA, EVALS, WORK_CAP, DAMPED = range(11)
-N_SCALARS = 11
+# LAST_T, LAST_Y: the time after the phase start of the state last written by the event
+# search (tasks.kernel.events) into the phase's modal arrays, and the observable there
+# (NaN: none), so that the state at a located event is not computed twice.
+(TAU0, COS_TAU0, SIN_TAU0, OBS_COS, OBS0, KIND, SIGN, BETA, EVALS, WORK_CAP, DAMPED) = range(11)
+LAST_T, LAST_Y = 11, 12
+N_SCALARS = 13
 KIND_SLIP = 0.0
 KIND_STICK = 1.0
 

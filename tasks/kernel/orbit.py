@@ -48,7 +48,7 @@ from tasks.kernel.layout import (
 )
 from tasks.kernel.outcome import _undetermined
 from tasks.kernel.phases import _dot, _start_slip, start_stick_in
-from tasks.kernel.propagation import derivative_bounds, evaluate
+from tasks.kernel.propagation import derivative_bounds, observable_range
 from tasks.regimes import NO_MOTION, NUMERICAL_FAILURE, WORK_LIMIT
 
 # Orbit invariant (:func:`orbit_holds`): stated tolerance of ``|g| <= beta`` in
@@ -59,7 +59,7 @@ ORBIT_MAX_SAMPLES = 4096.0
 
 
 @njit(**LEAF)
-def _phase_holds(seg, sc, t_len, h, tol, eta, etad):
+def _phase_holds(seg, sc, t_len, h, tol, eta, etad, scratch):
     """The invariant through one phase of length ``t_len`` (start already set in ``seg, sc``).
 
     Samples the observable at spacing at most ``h / ORBIT_SAMPLES`` (at most
@@ -68,30 +68,25 @@ def _phase_holds(seg, sc, t_len, h, tol, eta, etad):
     event located to ``tol`` can leave). Sliding: the contact velocity keeps the
     phase's sign, ``s v >= -1e-9 max|v|``. Returns 1 (holds), 0 (violated) or -1
     (the work budget ran out first). ``eta, etad`` are scratch arrays of the
-    phase's modes.
+    phase's modes, ``scratch`` too (:func:`observable_range`).
     """
     m = seg.shape[1]
     n_samples = int(min(max(2.0, ORBIT_SAMPLES * t_len / h), ORBIT_MAX_SAMPLES))
     if sc[EVALS] + n_samples * (1.0 + m) > sc[WORK_CAP]:
         return -1
     dt = t_len / (n_samples + 1)
+    ymin, ymax, finite = observable_range(seg, sc, dt, n_samples, eta, etad, scratch)
     if sc[KIND] == KIND_STICK:
         slope, _ = derivative_bounds(seg, sc, t_len)
         limit = sc[BETA] * (1.0 + ORBIT_RTOL) + tol * slope
-        for i in range(1, n_samples + 1):
-            y, _ = evaluate(seg, sc, i * dt, eta, etad)
-            if not abs(y) <= limit:
-                return 0
+        if not (finite and max(abs(ymin), abs(ymax)) <= limit):
+            return 0
         sc[EVALS] += n_samples * (1.0 + m)
         return 1
+    # sliding: the contact velocity s y keeps the sign s (NaN samples left out)
     s = sc[SIGN]
-    vmax = 0.0
-    vmin = 0.0
-    for i in range(1, n_samples + 1):
-        y, _ = evaluate(seg, sc, i * dt, eta, etad)
-        v = s * y
-        vmax = max(vmax, abs(v))
-        vmin = min(vmin, v)
+    vmax = max(abs(ymin), abs(ymax)) if ymin <= ymax else 0.0
+    vmin = min(0.0, s * ymin if s > 0.0 else s * ymax) if ymin <= ymax else 0.0
     sc[EVALS] += n_samples * (1.0 + m)
     return 1 if vmin >= -1e-9 * vmax else 0
 
@@ -151,7 +146,7 @@ def records_hold(rec, nr, ctx, work):
     h_stick = ctx[CTX_H_STICK]
     tol = ctx[CTX_TOL]
     sc = ctx[CTX_SC]
-    eta, etad, eta_s, etad_s, q, _ = work
+    eta, etad, eta_s, etad_s, q, stack = work
     x = np.empty(n)
     xd = np.empty(n)
     for j in range(nr - 1):
@@ -166,7 +161,7 @@ def records_hold(rec, nr, ctx, work):
         if phase == 0:
             seg = ctx[CTX_SEG_STICK]
             start_stick_in(ctx, x, xd, tau0, beta, q)
-            ok = _phase_holds(seg, sc, t_len, h_stick, tol, eta_s, etad_s)
+            ok = _phase_holds(seg, sc, t_len, h_stick, tol, eta_s, etad_s, stack)
         else:
             seg = ctx[CTX_SEG_SLIP]
             # the contact velocity at a section start; 0 at an event, as in run_cycle
@@ -174,7 +169,7 @@ def records_hold(rec, nr, ctx, work):
             _start_slip(
                 seg, sc, x, xd, tau0, float(phase), v0, beta, ctx[CTX_F_R2], ctx[CTX_PHI_T_GAMMA]
             )
-            ok = _phase_holds(seg, sc, t_len, h_slip, tol, eta, etad)
+            ok = _phase_holds(seg, sc, t_len, h_slip, tol, eta, etad, stack)
         if ok != 1:
             return ok
     return 1

@@ -70,6 +70,51 @@ def sin_over(e: float, u: float) -> float:
     return math.sin(x) / e
 
 
+@njit(inline="always", cache=True)
+def _increments(w, e0, v0, a, c, s1, c1, sh, ch, sint, ct0, st0, h):
+    """Increments ``(eta - eta0, eta' - eta0')`` of one mode at ``t = 2 h`` (Eq. (1),
+    product form), from ``s1, c1 = sin, cos(Omega h)``, ``sh, ch = sin, cos(h)``,
+    ``sint = sin t`` and ``ct0, st0 = cos, sin(tau0)``: the arithmetic of
+    :func:`evaluate`, shared with :func:`observable_range`."""
+    sin_wt = 2.0 * s1 * c1
+    one_m_cos = 2.0 * s1 * s1
+    sdw = s1 / w
+    p = w + 1.0
+    e = w - 1.0
+    sp = s1 * ch + c1 * sh
+    cp = c1 * ch - s1 * sh
+    if abs(e) < 0.5:
+        sde = sin_over(e, h)
+    else:  # sin(e h) = sin(w h) cos h - cos(w h) sin h, one trig call less; as
+        # accurate as the sine itself (|w / e| <= 3 bounds the cancellation as t -> 0)
+        sde = (s1 * ch - c1 * sh) / e
+    cc = 2.0 * sp * sde / p
+    cd = (sin_wt + 2.0 * cp * sde) / p
+    if abs(e) < 0.5:
+        ss = (sint - 2.0 * cp * sde) / (w * p)
+    else:
+        ss = (sint - 2.0 * sdw * c1) / (w * w - 1.0)
+    d_eta = -e0 * one_m_cos + v0 * 2.0 * sdw * c1 + c * 2.0 * sdw * sdw + a * (ct0 * cc - st0 * ss)
+    d_etad = -e0 * w * sin_wt - v0 * one_m_cos + c * 2.0 * sdw * c1 + a * (ct0 * cd - st0 * cc)
+    return d_eta, d_etad
+
+
+@njit(inline="always", cache=True)
+def _mode_state(seg, k, d_eta, d_etad, ctau, eta, etad):
+    """Write mode k's state (its start plus the increments) into ``eta, etad`` and
+    return its terms of ``(y, y')`` (``eta'' = -Omega^2 eta + a cos(tau) + c``, Eq. (1))."""
+    w = seg[OMEGA, k]
+    ek = seg[ETA0, k] + d_eta
+    vk = seg[ETAD0, k] + d_etad
+    eta[k] = ek
+    etad[k] = vk
+    return (
+        seg[ALPHA, k] * d_eta + seg[DELTA, k] * d_etad,
+        seg[ALPHA, k] * vk
+        + seg[DELTA, k] * (-w * w * ek + seg[LOAD_COS, k] * ctau + seg[LOAD_CONST, k]),
+    )
+
+
 @njit(**LEAF)
 def evaluate(seg, sc, t, eta, etad):
     """State and observable of a phase at time ``t`` after its start.
@@ -98,39 +143,133 @@ def evaluate(seg, sc, t, eta, etad):
         hw = w * h
         s1 = math.sin(hw)
         c1 = math.cos(hw)
-        sin_wt = 2.0 * s1 * c1
-        one_m_cos = 2.0 * s1 * s1
-        sdw = s1 / w
-        p = w + 1.0
-        e = w - 1.0
-        sp = s1 * ch + c1 * sh
-        cp = c1 * ch - s1 * sh
-        if abs(e) < 0.5:
-            sde = sin_over(e, h)
-        else:  # sin(e h) = sin(w h) cos h - cos(w h) sin h, one trig call less; as
-            # accurate as the sine itself (|w / e| <= 3 bounds the cancellation as t -> 0)
-            sde = (s1 * ch - c1 * sh) / e
-        cc = 2.0 * sp * sde / p
-        cd = (sin_wt + 2.0 * cp * sde) / p
-        if abs(e) < 0.5:
-            ss = (sint - 2.0 * cp * sde) / (w * p)
-        else:
-            ss = (sint - 2.0 * sdw * c1) / (w * w - 1.0)
         e0 = seg[ETA0, k]
         v0 = seg[ETAD0, k]
         a = seg[LOAD_COS, k]
         c = seg[LOAD_CONST, k]
-        d_eta = (
-            -e0 * one_m_cos + v0 * 2.0 * sdw * c1 + c * 2.0 * sdw * sdw + a * (ct0 * cc - st0 * ss)
-        )
-        d_etad = -e0 * w * sin_wt - v0 * one_m_cos + c * 2.0 * sdw * c1 + a * (ct0 * cd - st0 * cc)
-        ek = e0 + d_eta
-        vk = v0 + d_etad
-        eta[k] = ek
-        etad[k] = vk
-        y += seg[ALPHA, k] * d_eta + seg[DELTA, k] * d_etad
-        dy += seg[ALPHA, k] * vk + seg[DELTA, k] * (-w * w * ek + a * ctau + c)
+        d_eta, d_etad = _increments(w, e0, v0, a, c, s1, c1, sh, ch, sint, ct0, st0, h)
+        y_k, dy_k = _mode_state(seg, k, d_eta, d_etad, ctau, eta, etad)
+        y += y_k
+        dy += dy_k
     return y, dy
+
+
+@njit(**LEAF)
+def evaluate_start(seg, sc, eta, etad):
+    """:func:`evaluate` at the phase start (``t = 0``) without its trigonometry.
+
+    At ``t = 0`` every increment of the closed form vanishes, so the state is
+    ``(eta0, eta0')`` and ``y = y0``, ``y' = -A sin(tau0) + sum_k alpha_k eta0'_k +
+    delta_k eta0''_k`` (``eta0'' = -Omega^2 eta0 + a cos(tau0) + c``, Eq. (1)): the
+    same values as ``evaluate(seg, sc, 0.0, eta, etad)`` to the last bit (non-finite
+    data propagate as there).
+    """
+    if sc[DAMPED] != 0.0:
+        return evaluate_damped(seg, sc, 0.0, eta, etad)
+    ct0 = sc[COS_TAU0]
+    amp = sc[OBS_COS]
+    y = sc[OBS0] - 0.0 * amp
+    dy = -amp * sc[SIN_TAU0]
+    for k in range(seg.shape[1]):
+        # the increments: 0 (NaN where evaluate's are)
+        zero = 0.0 * (
+            seg[ETA0, k] + seg[ETAD0, k] + seg[LOAD_COS, k] + seg[LOAD_CONST, k] + seg[OMEGA, k]
+        )
+        y_k, dy_k = _mode_state(seg, k, zero, zero, ct0, eta, etad)
+        y += y_k
+        dy += dy_k
+    return y, dy
+
+
+@njit(inline="always", cache=True)
+def _extend(y, ymin, ymax, finite):
+    """The range ``(ymin, ymax, finite)`` with the sample y (NaN left out, ``finite`` False)."""
+    if y != y:
+        return ymin, ymax, False
+    return min(ymin, y), max(ymax, y), finite
+
+
+#: Samples between exact re-evaluations of the rotations in :func:`observable_range`
+#: (the rounding of a rotation, ~1e-16 relative, grows at most this many times).
+ANCHOR = 16
+
+
+@njit(**LEAF)
+def observable_range(seg, sc, dt, n, eta, etad, scratch):
+    """Smallest and largest observable ``y`` at the times ``t = i dt``, i = 1..n, of a phase.
+
+    Uniformly spaced times: the sines and cosines of ``t / 2`` and ``Omega_k t / 2``
+    are advanced by rotation (angle addition by ``dt / 2``, ``Omega_k dt / 2``: four
+    products instead of a trigonometric call per mode and sample) and recomputed
+    exactly every :data:`ANCHOR` samples, so the rounding they add stays a few
+    1e-15 of each term; the rest is :func:`evaluate`'s arithmetic (``y`` only).
+    Returns ``(ymin, ymax, finite)``; NaN samples are left out of the range and make
+    ``finite`` False. ``eta, etad`` are scratch; ``scratch`` (at least m rows of 4
+    columns) holds the rotations (a damped scene, or fewer rows, evaluates every
+    sample with :func:`evaluate`).
+    """
+    m = seg.shape[1]
+    ymin = np.inf
+    ymax = -np.inf
+    finite = True
+    if sc[DAMPED] != 0.0 or scratch.shape[0] < m or scratch.shape[1] < 4:
+        for i in range(1, n + 1):
+            y, _ = evaluate(seg, sc, i * dt, eta, etad)
+            ymin, ymax, finite = _extend(y, ymin, ymax, finite)
+        return ymin, ymax, finite
+    hd = 0.5 * dt
+    sd0 = math.sin(hd)
+    cd0 = math.cos(hd)
+    for k in range(m):
+        whd = seg[OMEGA, k] * hd
+        scratch[k, 2] = math.sin(whd)
+        scratch[k, 3] = math.cos(whd)
+    ct0 = sc[COS_TAU0]
+    st0 = sc[SIN_TAU0]
+    amp = sc[OBS_COS]
+    y0 = sc[OBS0]
+    sh = 0.0
+    ch = 1.0
+    for i in range(1, n + 1):
+        anchor = (i - 1) % ANCHOR == 0
+        h = 0.5 * (i * dt)
+        if anchor:
+            sh = math.sin(h)
+            ch = math.cos(h)
+        else:
+            sh, ch = sh * cd0 + ch * sd0, ch * cd0 - sh * sd0
+        sint = 2.0 * sh * ch
+        y = y0 - 2.0 * amp * (st0 * ch + ct0 * sh) * sh
+        for k in range(m):
+            w = seg[OMEGA, k]
+            if anchor:
+                s1 = math.sin(w * h)
+                c1 = math.cos(w * h)
+            else:
+                s_old = scratch[k, 0]
+                c_old = scratch[k, 1]
+                s1 = s_old * scratch[k, 3] + c_old * scratch[k, 2]
+                c1 = c_old * scratch[k, 3] - s_old * scratch[k, 2]
+            scratch[k, 0] = s1
+            scratch[k, 1] = c1
+            d_eta, d_etad = _increments(
+                w,
+                seg[ETA0, k],
+                seg[ETAD0, k],
+                seg[LOAD_COS, k],
+                seg[LOAD_CONST, k],
+                s1,
+                c1,
+                sh,
+                ch,
+                sint,
+                ct0,
+                st0,
+                h,
+            )
+            y += seg[ALPHA, k] * d_eta + seg[DELTA, k] * d_etad
+        ymin, ymax, finite = _extend(y, ymin, ymax, finite)
+    return ymin, ymax, finite
 
 
 @njit(**LEAF)
