@@ -285,34 +285,14 @@ def orbit_design_recorded(r, beta, scene, settings, state, period, samples, dout
             i_s += 1
     taus[count - 1] = rec[nr - 1, REC_TAU]
     states = sample_states(ctx, work, rec, taus)
+    cos_t = np.empty(count)
+    sin_t = np.empty(count)
+    for s in range(count):
+        cos_t[s] = math.cos(taus[s])
+        sin_t[s] = math.sin(taus[s])
+    _amplitudes(ctx, work, rec, taus, states, cos_t, sin_t, c, dout)
     acc = np.empty(6)
     refine = np.empty(2)
-    for which in range(2):
-        cf = 0.0 if which == 0 else -c
-        for i in range(n):
-            acc[0] = np.inf
-            acc[1] = -np.inf
-            acc[4] = np.inf
-            acc[5] = -np.inf
-            for s in range(count - 1):
-                ta = taus[s]
-                tb = taus[s + 1]
-                ya = states[s, i] + cf * math.cos(ta)
-                yb = states[s + 1, i] + cf * math.cos(tb)
-                va = states[s, n + i] - cf * math.sin(ta)
-                vb = states[s + 1, n + i] - cf * math.sin(tb)
-                _hermite_extremes(ta, tb, ya, yb, va, vb, acc)
-            # the interpolated extrema evaluated exactly (error O(h^6), never above)
-            refine[0] = min(acc[2], acc[3])
-            refine[1] = max(acc[2], acc[3])
-            exact = sample_states(ctx, work, rec, refine)
-            lo = acc[4]
-            hi = acc[5]
-            for k in range(2):
-                y = exact[k, i] + cf * math.cos(refine[k])
-                lo = min(lo, y)
-                hi = max(hi, y)
-            dout[which * n + i] = 0.5 * (hi - lo)
     if sliding:
         force = beta
     elif damped:  # stuck the whole (converged) orbit: G0 + Hc cos + Hs sin, no free part left
@@ -331,12 +311,12 @@ def orbit_design_recorded(r, beta, scene, settings, state, period, samples, dout
         for s in range(count - 1):
             ta = taus[s]
             tb = taus[s + 1]
-            ga = _contact_force(p, math.cos(ta), K, states[s, :n].copy(), g_load)
-            gb = _contact_force(p, math.cos(tb), K, states[s + 1, :n].copy(), g_load)
+            ga = _contact_force(p, cos_t[s], K, states[s, :n].copy(), g_load)
+            gb = _contact_force(p, cos_t[s + 1], K, states[s + 1, :n].copy(), g_load)
             _matvec(K, states[s, n:].copy(), kxd)
-            dga = -math.sin(ta) * gp - _dot(g_load, kxd)
+            dga = -sin_t[s] * gp - _dot(g_load, kxd)
             _matvec(K, states[s + 1, n:].copy(), kxd)
-            dgb = -math.sin(tb) * gp - _dot(g_load, kxd)
+            dgb = -sin_t[s + 1] * gp - _dot(g_load, kxd)
             _hermite_extremes(ta, tb, ga, gb, dga, dgb, acc)
         refine[0] = min(acc[2], acc[3])
         refine[1] = max(acc[2], acc[3])
@@ -352,6 +332,53 @@ def orbit_design_recorded(r, beta, scene, settings, state, period, samples, dout
         viscous = _viscous_work(ctx, work, rec, taus, r, C) / period
     dout[2 * n + DESIGN_VISCOUS] = viscous
     return count
+
+
+@njit(cache=True)
+def _amplitudes(ctx, work, rec, taus, states, cos_t, sin_t, c, dout):
+    """Amplitudes (half peak-to-peak) of every coordinate in both frames into ``dout[:2 n]``.
+
+    ``states`` are the exact states at the sample times ``taus`` (``cos_t``, ``sin_t``
+    their cosines and sines), ``c`` the other frame's sign (``q_i - c cos tau``).
+    The extrema between samples are located on the cubic Hermite interpolant
+    (:func:`_hermite_extremes`); the interpolated smallest and largest value of each
+    coordinate are then evaluated exactly, all in one pass over the records.
+    """
+    n = states.shape[1] // 2
+    count = taus.shape[0]
+    acc = np.empty((2 * n, 6))
+    for col in range(2 * n):
+        acc[col, 0] = np.inf
+        acc[col, 1] = -np.inf
+        acc[col, 4] = np.inf
+        acc[col, 5] = -np.inf
+    for s in range(count - 1):
+        ta = taus[s]
+        tb = taus[s + 1]
+        for which in range(2):
+            cf = 0.0 if which == 0 else -c
+            for i in range(n):
+                ya = states[s, i] + cf * cos_t[s]
+                yb = states[s + 1, i] + cf * cos_t[s + 1]
+                va = states[s, n + i] - cf * sin_t[s]
+                vb = states[s + 1, n + i] - cf * sin_t[s + 1]
+                _hermite_extremes(ta, tb, ya, yb, va, vb, acc[which * n + i])
+    # the interpolated extrema evaluated exactly (error O(h^6), never above)
+    times = np.empty(4 * n)
+    for col in range(2 * n):
+        times[2 * col] = min(acc[col, 2], acc[col, 3])
+        times[2 * col + 1] = max(acc[col, 2], acc[col, 3])
+    order = np.argsort(times)
+    exact = sample_states(ctx, work, rec, times[order])
+    for pos in range(4 * n):
+        col = order[pos] // 2
+        i = col % n
+        cf = 0.0 if col < n else -c
+        y = exact[pos, i] + cf * math.cos(times[order[pos]])
+        acc[col, 4] = min(acc[col, 4], y)
+        acc[col, 5] = max(acc[col, 5], y)
+    for col in range(2 * n):
+        dout[col] = 0.5 * (acc[col, 5] - acc[col, 4])
 
 
 @njit(cache=True)
