@@ -79,7 +79,7 @@ _GL_WEIGHTS = (
 #: Samples per excitation cycle (at least; more where modal periods are short).
 DESIGN_SAMPLES = 32
 #: Samples per half period of the highest mode (exact extrema, :mod:`tasks.kernel.extrema`).
-MODE_SAMPLES = 8.0
+MODE_SAMPLES = 4.0
 #: Samples per excitation cycle at most (very stiff chains: the modes far above
 #: the excitation are then resolved only as far as this allows).
 DESIGN_MAX_SAMPLES = 4096

@@ -31,12 +31,16 @@ from numba import njit
 from tasks.kernel.layout import (
     COS_TAU0,
     CTX_PHI,
+    CTX_PHI_S,
     CTX_SC,
     CTX_SEG_SLIP,
     CTX_SEG_STICK,
+    CTX_T,
+    CTX_W,
     DAMPED,
     ETA0,
     ETAD0,
+    ETAD_OFF,
     LEAF,
     LOAD_CONST,
     LOAD_COS,
@@ -129,6 +133,9 @@ def orbit_extrema(ctx, work, rec, h, c, dout):
     ncol = 2 * n
     # the rotation form: undamped, proportional (not the pairs of general damping)
     plain = ctx[CTX_SC][DAMPED] == 0.0 and ctx[CTX_PHI].shape[0] == n
+    phi, phi_s, T, w_s, q = ctx[CTX_PHI], ctx[CTX_PHI_S], ctx[CTX_T], ctx[CTX_W], work[4]
+    off_slip = ctx[CTX_SEG_SLIP][ETAD_OFF]
+    off_stick = ctx[CTX_SEG_STICK][ETAD_OFF]
     lo = np.full(ncol, np.inf)  # exact extreme values
     hi = np.full(ncol, -np.inf)
     top = np.full(ncol, -np.inf)  # located (samples, interpolated) extremes
@@ -166,6 +173,7 @@ def orbit_extrema(ctx, work, rec, h, c, dout):
         seg = ctx[CTX_SEG_SLIP] if mode != 0 else ctx[CTX_SEG_STICK]
         m = seg.shape[1]
         eta = eta_slip if mode != 0 else eta_stick
+        off = off_slip if mode != 0 else off_stick
         etad = etad_slip if mode != 0 else etad_stick
         d0 = 0.0
         if k_j > 1:
@@ -192,27 +200,27 @@ def orbit_extrema(ctx, work, rec, h, c, dout):
                     st = math.sin(tau)
                 else:
                     ct, st = ct * cdt - st * sdt, st * cdt + ct * sdt
-                for q in range(m):
-                    w = seg[OMEGA, q]
+                for mo in range(m):
+                    w = seg[OMEGA, mo]
                     if k == 1:
-                        rot[2, q] = math.cos(w * dt)
-                        rot[3, q] = math.sin(w * dt)
+                        rot[2, mo] = math.cos(w * dt)
+                        rot[3, mo] = math.sin(w * dt)
                     if anchor:
-                        rot[0, q] = math.cos(w * t)
-                        rot[1, q] = math.sin(w * t)
+                        rot[0, mo] = math.cos(w * t)
+                        rot[1, mo] = math.sin(w * t)
                     else:
-                        cw = rot[0, q]
-                        sw = rot[1, q]
-                        rot[0, q] = cw * rot[2, q] - sw * rot[3, q]
-                        rot[1, q] = sw * rot[2, q] + cw * rot[3, q]
-                    cw = rot[0, q]
-                    sw = rot[1, q]
-                    eta[q] = coef[0, q] + coef[1, q] * ct + coef[2, q] * cw + coef[3, q] * sw
-                    etad[q] = w * (coef[3, q] * cw - coef[2, q] * sw) - coef[1, q] * st
-                modal_to_state(ctx, work, mode, d0, eta, etad, x, xd)
+                        cw = rot[0, mo]
+                        sw = rot[1, mo]
+                        rot[0, mo] = cw * rot[2, mo] - sw * rot[3, mo]
+                        rot[1, mo] = sw * rot[2, mo] + cw * rot[3, mo]
+                    cw = rot[0, mo]
+                    sw = rot[1, mo]
+                    eta[mo] = coef[0, mo] + coef[1, mo] * ct + coef[2, mo] * cw + coef[3, mo] * sw
+                    etad[mo] = w * (coef[3, mo] * cw - coef[2, mo] * sw) - coef[1, mo] * st
+                modal_to_state(mode == 0, d0, eta, etad, x, xd, phi, phi_s, T, w_s, q, off)
             else:  # near resonance or damped: the exact product form
                 evaluate(seg, ctx[CTX_SC], t, eta, etad)
-                modal_to_state(ctx, work, mode, d0, eta, etad, x, xd)
+                modal_to_state(mode == 0, d0, eta, etad, x, xd, phi, phi_s, T, w_s, q, off)
                 ct = math.cos(tau)
                 st = math.sin(tau)
             total += 1

@@ -96,17 +96,16 @@ def phase_start(ctx, work, rec, j, x, xd):
 
 
 @njit(**LEAF)
-def modal_to_state(ctx, work, mode, d0, eta, etad, x, xd):
-    """``(x, x')`` of a phase's modal state ``(eta, eta')`` (stick if ``mode`` is 0,
-    contact displacement ``d0``). With ``d0 = 0`` it maps modal accelerations and
-    jerks to physical ones (not for general damping, whose pairs carry an offset)."""
-    if mode == 0:
-        seg = ctx[CTX_SEG_STICK]
-        _stick_state(
-            ctx[CTX_PHI_S], ctx[CTX_T], ctx[CTX_W], d0, eta, etad, work[4], x, xd, seg[ETAD_OFF]
-        )
+def modal_to_state(stick, d0, eta, etad, x, xd, phi, phi_s, T, w, q, off):
+    """``(x, x')`` of a phase's modal state ``(eta, eta')``: a stick phase (contact
+    displacement ``d0``; ``phi_s``, ``T``, ``w``, scratch ``q``) or a slip phase
+    (``phi``); ``off`` the phase's row ETAD_OFF. With ``d0 = 0`` it maps modal
+    accelerations and jerks to physical ones (not for general damping, whose pairs
+    carry an offset). The arrays are the context's (:func:`phase_maps`)."""
+    if stick:
+        _stick_state(phi_s, T, w, d0, eta, etad, q, x, xd, off)
     else:
-        _slip_state(ctx[CTX_PHI], eta, etad, x, xd, ctx[CTX_SEG_SLIP][ETAD_OFF])
+        _slip_state(phi, eta, etad, x, xd, off)
 
 
 @njit(cache=True)
@@ -131,6 +130,9 @@ def sample_motion(ctx, work, rec, taus, derivs):
     xd = np.empty(n)
     eta, etad, eta_s, etad_s, q, _ = work
     with_derivs = derivs.shape[0] == taus.shape[0]
+    phi, phi_s, T, w = ctx[CTX_PHI], ctx[CTX_PHI_S], ctx[CTX_T], ctx[CTX_W]
+    off_slip = ctx[CTX_SEG_SLIP][ETAD_OFF]
+    off_stick = ctx[CTX_SEG_STICK][ETAD_OFF]
     etadd = np.empty(n)
     etaddd = np.empty(n)
     j = 0
@@ -147,12 +149,12 @@ def sample_motion(ctx, work, rec, taus, derivs):
             d0 = phase_start(ctx, work, rec, j, x, xd)
         if mode == 0:
             seg = ctx[CTX_SEG_STICK]
-            e, ed = eta_s, etad_s
+            e, ed, off = eta_s, etad_s, off_stick
         else:
             seg = ctx[CTX_SEG_SLIP]
-            e, ed = eta, etad
+            e, ed, off = eta, etad, off_slip
         evaluate(seg, ctx[CTX_SC], tau - tau0, e, ed)
-        modal_to_state(ctx, work, mode, d0, e, ed, x, xd)
+        modal_to_state(mode == 0, d0, e, ed, x, xd, phi, phi_s, T, w, q, off)
         out[i, :n] = x
         out[i, n:] = xd
         if with_derivs:
@@ -164,7 +166,7 @@ def sample_motion(ctx, work, rec, taus, derivs):
                 sigma2 = 2.0 * seg[DAMP, k]
                 etadd[k] = seg[LOAD_COS, k] * ct + seg[LOAD_CONST, k] - sigma2 * ed[k] - w2 * e[k]
                 etaddd[k] = -seg[LOAD_COS, k] * st - sigma2 * etadd[k] - w2 * ed[k]
-            modal_to_state(ctx, work, mode, 0.0, etadd[:m], etaddd[:m], x, xd)
+            modal_to_state(mode == 0, 0.0, etadd[:m], etaddd[:m], x, xd, phi, phi_s, T, w, q, off)
             derivs[i, :n] = x
             derivs[i, n:] = xd
     return out
