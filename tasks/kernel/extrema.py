@@ -53,6 +53,7 @@ from tasks.kernel.layout import (
 from tasks.kernel.propagation import evaluate
 from tasks.kernel.records import modal_to_state, phase_start, sample_motion
 
+_LO, _HI, _TOP, _BOT, _TOP_T, _BOT_T, _TOP_INEXACT, _BOT_INEXACT, _PREV_Y, _PREV_V = range(10)
 #: Samples of the rotation recurrence between two exact anchors (drift ~ ANCHOR eps).
 ANCHOR = 32
 #: Modes with ``|Omega^2 - 1|`` below this are sampled with the exact product form.
@@ -100,9 +101,9 @@ def hermite_peak(h, y0, y1, v0, v1):
     return s, y0 * h00 + h * v0 * h10 + y1 * h01 + h * v1 * h11
 
 
-@njit(cache=True)
-def _harmonic_form(seg, sc, coef):
-    """Rows of ``coef`` per mode: ``c / Omega^2``, ``P``, ``F``, ``G / Omega`` of the
+@njit(**LEAF)
+def _harmonic_form(seg, sc, mod):
+    """Rows 2-5 of ``mod`` per mode: ``c / Omega^2``, ``P``, ``F``, ``G / Omega`` of the
     phase set in ``seg``, ``sc`` (undamped); False if a mode is near resonance."""
     ct0 = sc[COS_TAU0]
     st0 = sc[SIN_TAU0]
@@ -113,10 +114,10 @@ def _harmonic_form(seg, sc, coef):
             return False
         P = seg[LOAD_COS, k] / d
         static = seg[LOAD_CONST, k] / (w * w)
-        coef[0, k] = static
-        coef[1, k] = P
-        coef[2, k] = seg[ETA0, k] - static - P * ct0
-        coef[3, k] = (seg[ETAD0, k] + P * st0) / w
+        mod[2, k] = static
+        mod[3, k] = P
+        mod[4, k] = seg[ETA0, k] - static - P * ct0
+        mod[5, k] = (seg[ETAD0, k] + P * st0) / w
     return True
 
 
@@ -136,28 +137,24 @@ def orbit_extrema(ctx, work, rec, h, c, dout):
     phi, phi_s, T, w_s, q = ctx[CTX_PHI], ctx[CTX_PHI_S], ctx[CTX_T], ctx[CTX_W], work[4]
     off_slip = ctx[CTX_SEG_SLIP][ETAD_OFF]
     off_stick = ctx[CTX_SEG_STICK][ETAD_OFF]
-    lo = np.full(ncol, np.inf)  # exact extreme values
-    hi = np.full(ncol, -np.inf)
-    top = np.full(ncol, -np.inf)  # located (samples, interpolated) extremes
-    bot = np.full(ncol, np.inf)
-    top_t = np.zeros(ncol)
-    bot_t = np.zeros(ncol)
-    top_inexact = np.zeros(ncol, dtype=np.bool_)
-    bot_inexact = np.zeros(ncol, dtype=np.bool_)
+    # per column: exact extremes (lo, hi), located extremes (top, bot: samples and
+    # interpolated), their times, whether they are inexact samples, the previous sample
+    acc = np.empty((10, ncol))
+    for col in range(ncol):
+        acc[_LO, col] = np.inf
+        acc[_HI, col] = -np.inf
+        acc[_TOP, col] = -np.inf
+        acc[_BOT, col] = np.inf
+        acc[_TOP_INEXACT, col] = 0.0
+        acc[_BOT_INEXACT, col] = 0.0
     prev_t = 0.0
-    prev_y = np.empty(ncol)
-    prev_v = np.empty(ncol)
     cap = 4 * ncol + 16
     cands = np.empty((cap, 6))
     n_c = 0
-    x = np.empty(n)
-    xd = np.empty(n)
-    coef = np.empty((4, n))
-    rot = np.empty((4, n))  # cos, sin of Omega t, and of Omega dt
-    eta_slip = np.empty(n)
-    etad_slip = np.empty(n)
-    eta_stick = np.empty(ctx[CTX_SEG_STICK].shape[1])
-    etad_stick = np.empty(ctx[CTX_SEG_STICK].shape[1])
+    mod = np.empty((10, n))  # x, x', the harmonic form (4 rows), its rotation (4 rows)
+    x = mod[0]
+    xd = mod[1]
+    eta_slip, etad_slip, eta_stick, etad_stick = work[0], work[1], work[2], work[3]
     total = 0
     first = True
     for j in range(nr):
@@ -178,7 +175,7 @@ def orbit_extrema(ctx, work, rec, h, c, dout):
         d0 = 0.0
         if k_j > 1:
             d0 = phase_start(ctx, work, rec, j, x, xd)
-            fast = plain and _harmonic_form(seg, ctx[CTX_SC], coef)
+            fast = plain and _harmonic_form(seg, ctx[CTX_SC], mod)
         cdt = math.cos(dt)
         sdt = math.sin(dt)
         ct = 0.0
@@ -203,20 +200,20 @@ def orbit_extrema(ctx, work, rec, h, c, dout):
                 for mo in range(m):
                     w = seg[OMEGA, mo]
                     if k == 1:
-                        rot[2, mo] = math.cos(w * dt)
-                        rot[3, mo] = math.sin(w * dt)
+                        mod[8, mo] = math.cos(w * dt)
+                        mod[9, mo] = math.sin(w * dt)
                     if anchor:
-                        rot[0, mo] = math.cos(w * t)
-                        rot[1, mo] = math.sin(w * t)
+                        mod[6, mo] = math.cos(w * t)
+                        mod[7, mo] = math.sin(w * t)
                     else:
-                        cw = rot[0, mo]
-                        sw = rot[1, mo]
-                        rot[0, mo] = cw * rot[2, mo] - sw * rot[3, mo]
-                        rot[1, mo] = sw * rot[2, mo] + cw * rot[3, mo]
-                    cw = rot[0, mo]
-                    sw = rot[1, mo]
-                    eta[mo] = coef[0, mo] + coef[1, mo] * ct + coef[2, mo] * cw + coef[3, mo] * sw
-                    etad[mo] = w * (coef[3, mo] * cw - coef[2, mo] * sw) - coef[1, mo] * st
+                        cw = mod[6, mo]
+                        sw = mod[7, mo]
+                        mod[6, mo] = cw * mod[8, mo] - sw * mod[9, mo]
+                        mod[7, mo] = sw * mod[8, mo] + cw * mod[9, mo]
+                    cw = mod[6, mo]
+                    sw = mod[7, mo]
+                    eta[mo] = mod[2, mo] + mod[3, mo] * ct + mod[4, mo] * cw + mod[5, mo] * sw
+                    etad[mo] = w * (mod[5, mo] * cw - mod[4, mo] * sw) - mod[3, mo] * st
                 modal_to_state(mode == 0, d0, eta, etad, x, xd, phi, phi_s, T, w_s, q, off)
             else:  # near resonance or damped: the exact product form
                 evaluate(seg, ctx[CTX_SC], t, eta, etad)
@@ -230,25 +227,25 @@ def orbit_extrema(ctx, work, rec, h, c, dout):
                 y = x[i] + cf * ct
                 v = xd[i] - cf * st
                 if exact:
-                    lo[col] = min(lo[col], y)
-                    hi[col] = max(hi[col], y)
-                if y > top[col]:
-                    top[col] = y
-                    top_t[col] = tau
-                    top_inexact[col] = not exact
-                if y < bot[col]:
-                    bot[col] = y
-                    bot_t[col] = tau
-                    bot_inexact[col] = not exact
-                if not first and prev_v[col] * v < 0.0:
-                    s, yi = hermite_peak(tau - prev_t, prev_y[col], y, prev_v[col], v)
+                    acc[_LO, col] = min(acc[_LO, col], y)
+                    acc[_HI, col] = max(acc[_HI, col], y)
+                if y > acc[_TOP, col]:
+                    acc[_TOP, col] = y
+                    acc[_TOP_T, col] = tau
+                    acc[_TOP_INEXACT, col] = 0.0 if exact else 1.0
+                if y < acc[_BOT, col]:
+                    acc[_BOT, col] = y
+                    acc[_BOT_T, col] = tau
+                    acc[_BOT_INEXACT, col] = 0.0 if exact else 1.0
+                if not first and acc[_PREV_V, col] * v < 0.0:
+                    s, yi = hermite_peak(tau - prev_t, acc[_PREV_Y, col], y, acc[_PREV_V, col], v)
                     if s > 0.0:
                         if n_c == cap:
                             grown = np.empty((2 * cap, 6))
                             grown[:cap] = cands
                             cands = grown
                             cap *= 2
-                        kind = 1.0 if prev_v[col] > 0.0 else -1.0
+                        kind = 1.0 if acc[_PREV_V, col] > 0.0 else -1.0
                         cands[n_c, 0] = col
                         cands[n_c, 1] = prev_t + s * (tau - prev_t)
                         cands[n_c, 2] = yi
@@ -256,50 +253,36 @@ def orbit_extrema(ctx, work, rec, h, c, dout):
                         cands[n_c, 4] = prev_t
                         cands[n_c, 5] = tau
                         n_c += 1
-                        if kind > 0.0 and yi > top[col]:
-                            top[col] = yi
-                            top_inexact[col] = False
-                        if kind < 0.0 and yi < bot[col]:
-                            bot[col] = yi
-                            bot_inexact[col] = False
-                prev_y[col] = y
-                prev_v[col] = v
+                        if kind > 0.0 and yi > acc[_TOP, col]:
+                            acc[_TOP, col] = yi
+                            acc[_TOP_INEXACT, col] = 0.0
+                        if kind < 0.0 and yi < acc[_BOT, col]:
+                            acc[_BOT, col] = yi
+                            acc[_BOT_INEXACT, col] = 0.0
+                acc[_PREV_Y, col] = y
+                acc[_PREV_V, col] = v
             prev_t = tau
             first = False
     # the located extrema that may be the largest or smallest: polished exactly
-    pick = np.empty(n_c + 2 * ncol, dtype=np.int64)
-    n_p = 0
+    which = np.empty((n_c + 2 * ncol, 6))
+    n_all = 0
     for k in range(n_c):
         col = int(cands[k, 0])
-        margin = MARGIN * (top[col] - bot[col])
-        if cands[k, 3] > 0.0 and cands[k, 2] >= top[col] - margin:
-            pick[n_p] = k
-            n_p += 1
-        elif cands[k, 3] < 0.0 and cands[k, 2] <= bot[col] + margin:
-            pick[n_p] = k
-            n_p += 1
-    extra = np.empty((2 * ncol, 6))
-    n_e = 0
+        margin = MARGIN * (acc[_TOP, col] - acc[_BOT, col])
+        if cands[k, 3] > 0.0 and cands[k, 2] >= acc[_TOP, col] - margin:
+            which[n_all] = cands[k]
+            n_all += 1
+        elif cands[k, 3] < 0.0 and cands[k, 2] <= acc[_BOT, col] + margin:
+            which[n_all] = cands[k]
+            n_all += 1
     for col in range(ncol):  # a sample beyond every located extremum (a missed pair)
-        if top_inexact[col]:
-            extra[n_e, 0] = col
-            extra[n_e, 1] = top_t[col]
-            extra[n_e, 3] = 0.0
-            n_e += 1
-        if bot_inexact[col]:
-            extra[n_e, 0] = col
-            extra[n_e, 1] = bot_t[col]
-            extra[n_e, 3] = 0.0
-            n_e += 1
-    n_all = n_p + n_e
-    times = np.empty(n_all)
-    which = np.empty((n_all, 6))
-    for k in range(n_p):
-        which[k] = cands[pick[k]]
-    for k in range(n_e):
-        which[n_p + k] = extra[k]
-    for k in range(n_all):
-        times[k] = which[k, 1]
+        for row_t, row_inexact in ((_TOP_T, _TOP_INEXACT), (_BOT_T, _BOT_INEXACT)):
+            if acc[row_inexact, col] != 0.0:
+                which[n_all, 0] = col
+                which[n_all, 1] = acc[row_t, col]
+                which[n_all, 3] = 0.0
+                n_all += 1
+    times = which[:n_all, 1].copy()
     order = np.argsort(times)
     derivs = np.empty((n_all, 2 * n))
     states = sample_motion(ctx, work, rec, times[order], derivs)
@@ -321,8 +304,8 @@ def orbit_extrema(ctx, work, rec, h, c, dout):
                 d = -2.0 * v * a / denom
                 if which[k, 4] <= t + d <= which[k, 5]:
                     y += d * (v + d * (0.5 * a + d * jerk / 6.0))
-        lo[col] = min(lo[col], y)
-        hi[col] = max(hi[col], y)
+        acc[_LO, col] = min(acc[_LO, col], y)
+        acc[_HI, col] = max(acc[_HI, col], y)
     for col in range(ncol):
-        dout[col] = 0.5 * (hi[col] - lo[col])
+        dout[col] = 0.5 * (acc[_HI, col] - acc[_LO, col])
     return total
