@@ -17,8 +17,11 @@ computed from the modal closed form written in the mode's own harmonics,
 ``eta = c / Omega^2 + P cos tau + F cos(Omega t) + G sin(Omega t) / Omega``
 (``P = a / (Omega^2 - 1)``, Eq. (1) of :mod:`tasks.kernel.propagation`), with
 the harmonics advanced by rotation (angle addition, re-anchored exactly every
-``ANCHOR`` samples): no trigonometric call per sample and mode. Those samples
-only place the Hermite brackets; the values reported come from exact evaluations.
+``ANCHOR`` samples): no trigonometric call per sample and mode. An extremum
+located in such a phase is polished at once on the same form, evaluated with
+exact trigonometric values (a near-resonant mode, ``|Omega^2 - 1| <
+RESONANCE_GAP``, or a damped phase is sampled and polished with the exact
+product form of :func:`tasks.kernel.propagation.evaluate` instead).
 """
 
 from __future__ import annotations
@@ -121,6 +124,54 @@ def _harmonic_form(seg, sc, mod):
     return True
 
 
+@njit(**LEAF)
+def _halley_value(motion, t_lo, t_hi):
+    """The extreme value near ``t`` of a smooth motion given ``(t, y, y', y'', y''')``
+    there: Halley's step ``d`` to ``y' = 0`` and ``y`` to fourth order in it (``y``
+    itself if the step leaves ``[t_lo, t_hi]``, the smooth stretch)."""
+    t, y, v, a, jerk = motion
+    denom = 2.0 * a * a - v * jerk
+    if denom == 0.0:
+        return y
+    d = -2.0 * v * a / denom
+    if not t_lo <= t + d <= t_hi:
+        return y
+    return y + d * (v + d * (0.5 * a + d * jerk / 6.0))
+
+
+@njit(cache=True)
+def _polish_harmonic(ctx, work, loaded, mod, pol, col, c, t):
+    """``(t, y, y', y'', y''')`` of column ``col`` at ``t`` from the harmonic form of
+    the phase ``loaded`` (:func:`_harmonic_form`, in ``mod``): with ``f = F cos(Omega s)
+    + G sin(Omega s)``, ``eta = c / Omega^2 + P cos tau + f`` and ``eta'' = -P cos tau
+    - Omega^2 f``; ``pol`` is scratch."""
+    n = pol.shape[1]
+    stick = loaded[3] == 0.0
+    seg = ctx[CTX_SEG_STICK] if stick else ctx[CTX_SEG_SLIP]
+    m = seg.shape[1]
+    s = t - loaded[2]
+    ct = math.cos(t)
+    st = math.sin(t)
+    for mo in range(m):
+        w = seg[OMEGA, mo]
+        cw = math.cos(w * s)
+        sw = math.sin(w * s)
+        f = mod[4, mo] * cw + mod[5, mo] * sw
+        fd = w * (mod[5, mo] * cw - mod[4, mo] * sw)
+        pol[0, mo] = mod[2, mo] + mod[3, mo] * ct + f
+        pol[1, mo] = fd - mod[3, mo] * st
+        pol[2, mo] = -mod[3, mo] * ct - w * w * f
+        pol[3, mo] = mod[3, mo] * st - w * w * fd
+    phi, phi_s, T, w_s, q = ctx[CTX_PHI], ctx[CTX_PHI_S], ctx[CTX_T], ctx[CTX_W], work[4]
+    off = seg[ETAD_OFF]
+    d0 = loaded[4]
+    modal_to_state(stick, d0, pol[0, :m], pol[1, :m], pol[4], pol[5], phi, phi_s, T, w_s, q, off)
+    modal_to_state(stick, 0.0, pol[2, :m], pol[3, :m], pol[6], pol[7], phi, phi_s, T, w_s, q, off)
+    i = col % n
+    cf = 0.0 if col < n else -c
+    return (t, pol[4, i] + cf * ct, pol[5, i] - cf * st, pol[6, i] - cf * ct, pol[7, i] + cf * st)
+
+
 @njit(cache=True)
 def orbit_extrema(ctx, work, rec, h, c, dout):
     """Amplitudes of every coordinate in both frames into ``dout[:2 n]``.
@@ -155,6 +206,9 @@ def orbit_extrema(ctx, work, rec, h, c, dout):
     x = mod[0]
     xd = mod[1]
     eta_slip, etad_slip, eta_stick, etad_stick = work[0], work[1], work[2], work[3]
+    pol = np.empty((8, n))  # modal and physical motion and derivatives at an extremum
+    loaded = (-1, 0.0, 0.0, 0.0, 0.0)  # the phase in mod: index, fast, tau0, mode, d0
+    last_j = -1
     total = 0
     first = True
     for j in range(nr):
@@ -173,9 +227,6 @@ def orbit_extrema(ctx, work, rec, h, c, dout):
         off = off_slip if mode != 0 else off_stick
         etad = etad_slip if mode != 0 else etad_stick
         d0 = 0.0
-        if k_j > 1:
-            d0 = phase_start(ctx, work, rec, j, x, xd)
-            fast = plain and _harmonic_form(seg, ctx[CTX_SC], mod)
         cdt = math.cos(dt)
         sdt = math.sin(dt)
         ct = 0.0
@@ -190,6 +241,12 @@ def orbit_extrema(ctx, work, rec, h, c, dout):
                     xd[i] = rec[j, REC_X + n + i]
                 ct = math.cos(tau)
                 st = math.sin(tau)
+            elif k == 1:  # (after the event's sample: its interval is the last phase's)
+                d0 = phase_start(ctx, work, rec, j, x, xd)
+                fast = plain and _harmonic_form(seg, ctx[CTX_SC], mod)
+                loaded = (j, 1.0 if fast else 0.0, tau0, float(mode), d0)
+            if exact:
+                pass
             elif fast:
                 anchor = (k - 1) % ANCHOR == 0  # exact harmonics, then rotated
                 if anchor:
@@ -239,6 +296,26 @@ def orbit_extrema(ctx, work, rec, h, c, dout):
                     acc[_BOT_INEXACT, col] = 0.0 if exact else 1.0
                 if not first and acc[_PREV_V, col] * v < 0.0:
                     s, yi = hermite_peak(tau - prev_t, acc[_PREV_Y, col], y, acc[_PREV_V, col], v)
+                    span = j if k > 0 else last_j  # the phase of the interval
+                    if s > 0.0 and loaded[0] == span and loaded[1] != 0.0:
+                        kind = 1.0 if acc[_PREV_V, col] > 0.0 else -1.0
+                        margin = MARGIN * (acc[_TOP, col] - acc[_BOT, col])
+                        if (kind > 0.0 and yi >= acc[_TOP, col] - margin) or (
+                            kind < 0.0 and yi <= acc[_BOT, col] + margin
+                        ):  # polished now, on the phase's harmonic form
+                            motion = _polish_harmonic(
+                                ctx, work, loaded, mod, pol, col, c, prev_t + s * (tau - prev_t)
+                            )
+                            ye = _halley_value(motion, prev_t, tau)
+                            acc[_LO, col] = min(acc[_LO, col], ye)
+                            acc[_HI, col] = max(acc[_HI, col], ye)
+                            if kind > 0.0 and yi > acc[_TOP, col]:
+                                acc[_TOP, col] = yi
+                                acc[_TOP_INEXACT, col] = 0.0
+                            if kind < 0.0 and yi < acc[_BOT, col]:
+                                acc[_BOT, col] = yi
+                                acc[_BOT_INEXACT, col] = 0.0
+                            s = -1.0
                     if s > 0.0:
                         if n_c == cap:
                             grown = np.empty((2 * cap, 6))
@@ -263,6 +340,7 @@ def orbit_extrema(ctx, work, rec, h, c, dout):
                 acc[_PREV_V, col] = v
             prev_t = tau
             first = False
+        last_j = j
     # the located extrema that may be the largest or smallest: polished exactly
     which = np.empty((n_c + 2 * ncol, 6))
     n_all = 0
@@ -282,30 +360,27 @@ def orbit_extrema(ctx, work, rec, h, c, dout):
                 which[n_all, 1] = acc[row_t, col]
                 which[n_all, 3] = 0.0
                 n_all += 1
-    times = which[:n_all, 1].copy()
-    order = np.argsort(times)
-    derivs = np.empty((n_all, 2 * n))
-    states = sample_motion(ctx, work, rec, times[order], derivs)
-    for pos in range(n_all):
-        k = order[pos]
-        col = int(which[k, 0])
-        i = col % n
-        cf = 0.0 if col < n else -c
-        t = times[k]
-        cos_t = math.cos(t)
-        sin_t = math.sin(t)
-        y = states[pos, i] + cf * cos_t
-        if which[k, 3] != 0.0:  # Halley's step to v = 0, the value to fourth order
-            v = states[pos, n + i] - cf * sin_t
-            a = derivs[pos, i] - cf * cos_t
-            jerk = derivs[pos, n + i] + cf * sin_t
-            denom = 2.0 * a * a - v * jerk
-            if denom != 0.0:
-                d = -2.0 * v * a / denom
-                if which[k, 4] <= t + d <= which[k, 5]:
-                    y += d * (v + d * (0.5 * a + d * jerk / 6.0))
-        acc[_LO, col] = min(acc[_LO, col], y)
-        acc[_HI, col] = max(acc[_HI, col], y)
+    if n_all > 0:  # the others, polished on the exact motion
+        times = which[:n_all, 1].copy()
+        order = np.argsort(times)
+        derivs = np.empty((n_all, 2 * n))
+        states = sample_motion(ctx, work, rec, times[order], derivs)
+        for pos in range(n_all):
+            k = order[pos]
+            col = int(which[k, 0])
+            i = col % n
+            cf = 0.0 if col < n else -c
+            t = times[k]
+            cos_t = math.cos(t)
+            sin_t = math.sin(t)
+            y = states[pos, i] + cf * cos_t
+            if which[k, 3] != 0.0:
+                v = states[pos, n + i] - cf * sin_t
+                a = derivs[pos, i] - cf * cos_t
+                jerk = derivs[pos, n + i] + cf * sin_t
+                y = _halley_value((t, y, v, a, jerk), which[k, 4], which[k, 5])
+            acc[_LO, col] = min(acc[_LO, col], y)
+            acc[_HI, col] = max(acc[_HI, col], y)
     for col in range(ncol):
         dout[col] = 0.5 * (acc[_HI, col] - acc[_LO, col])
     return total
