@@ -237,20 +237,19 @@ def orbit_design_recorded(r, beta, scene, settings, state, period, samples, dout
         rows *= 8
     nr = rec_n[0]
     rec = rec[:nr]
-    if not damped and C.shape[0] != n:
-        slip, sliding = _slip_distance(rec, b)
-        if sliding:  # exact extrema on the rotation form (tasks.kernel.extrema)
-            om_max = 1.0
-            for seg in (ctx[CTX_SEG_SLIP], ctx[CTX_SEG_STICK]):
-                for k in range(seg.shape[1]):
-                    om_max = max(om_max, seg[OMEGA, k])
-            h = min(TWO_PI / samples, math.pi / (MODE_SAMPLES * om_max))
-            h = max(h, TWO_PI / DESIGN_MAX_SAMPLES)
-            count = orbit_extrema(ctx, work, rec, h, c, dout)
-            dout[2 * n + DESIGN_FORCE] = beta
-            dout[2 * n + DESIGN_DISSIPATION] = beta * slip / period
-            dout[2 * n + DESIGN_VISCOUS] = 0.0
-            return count
+    slip, sliding = _slip_distance(rec, b)
+    if sliding and not damped and C.shape[0] != n:  # exact extrema (tasks.kernel.extrema)
+        om_max = 1.0
+        for seg in (ctx[CTX_SEG_SLIP], ctx[CTX_SEG_STICK]):
+            for k in range(seg.shape[1]):
+                om_max = max(om_max, seg[OMEGA, k])
+        h = min(TWO_PI / samples, math.pi / (MODE_SAMPLES * om_max))
+        h = max(h, TWO_PI / DESIGN_MAX_SAMPLES)
+        count = orbit_extrema(ctx, work, rec, h, c, dout)
+        dout[2 * n + DESIGN_FORCE] = beta
+        dout[2 * n + DESIGN_DISSIPATION] = beta * slip / period
+        dout[2 * n + DESIGN_VISCOUS] = 0.0
+        return count
     # sample times: every phase start and end, and at most h apart inside a phase
     h = min(TWO_PI / samples, 0.5 * min(ctx[CTX_H_SLIP], ctx[CTX_H_STICK]))
     h = max(h, TWO_PI / DESIGN_MAX_SAMPLES)
@@ -260,21 +259,11 @@ def orbit_design_recorded(r, beta, scene, settings, state, period, samples, dout
         if length > 0.0:
             count += max(1, int(math.ceil(length / h)))
     taus = np.empty(count)
-    slip = 0.0
-    sliding = False
     i_s = 0
     for j in range(nr - 1):
         length = rec[j + 1, REC_TAU] - rec[j, REC_TAU]
         if length <= 0.0:
             continue
-        if rec[j, REC_MODE] != 0.0:
-            sliding = True
-            d0 = 0.0
-            d1 = 0.0
-            for i in range(n):
-                d0 += b[i] * rec[j, REC_X + i]
-                d1 += b[i] * rec[j + 1, REC_X + i]
-            slip += abs(d1 - d0)
         k_j = max(1, int(math.ceil(length / h)))
         for k in range(k_j):
             taus[i_s] = rec[j, REC_TAU] + length * k / k_j
