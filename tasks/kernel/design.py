@@ -18,6 +18,7 @@ from numba import njit
 from tasks.kernel.context import _context
 from tasks.kernel.cycle import replay_cycles
 from tasks.kernel.damping import particular, stick_force_bound_damped
+from tasks.kernel.extrema import hermite_peak, orbit_extrema
 from tasks.kernel.layout import (
     CTX_B,
     CTX_G_LOAD,
@@ -77,6 +78,8 @@ _GL_WEIGHTS = (
 )
 #: Samples per excitation cycle (at least; more where modal periods are short).
 DESIGN_SAMPLES = 32
+#: Samples per half period of the highest mode (exact extrema, :mod:`tasks.kernel.extrema`).
+MODE_SAMPLES = 4.0
 #: Samples per excitation cycle at most (very stiff chains: the modes far above
 #: the excitation are then resolved only as far as this allows).
 DESIGN_MAX_SAMPLES = 4096
@@ -106,34 +109,9 @@ def _hermite_extremes(t0, t1, y0, y1, v0, v1, acc):
     if v0 * v1 >= 0.0:
         return
     h = t1 - t0
-    # p(s) = y0 h00 + h v0 h10 + y1 h01 + h v1 h11 on s in [0, 1]; p'(s) / h:
-    # (6 s^2 - 6 s)(y0 - y1)/h + (3 s^2 - 4 s + 1) v0 + (3 s^2 - 2 s) v1
-    dy = (y0 - y1) / h
-    a = 6.0 * dy + 3.0 * v0 + 3.0 * v1
-    b = -6.0 * dy - 4.0 * v0 - 2.0 * v1
-    c = v0
-    s = -1.0
-    if abs(a) < 1e-300:
-        if b != 0.0:
-            s = -c / b
-    else:
-        disc = b * b - 4.0 * a * c
-        if disc >= 0.0:
-            sq = math.sqrt(disc)
-            q = -0.5 * (b + math.copysign(sq, b))
-            s1 = q / a
-            s2 = c / q if q != 0.0 else -1.0
-            if 0.0 < s1 < 1.0:
-                s = s1
-            elif 0.0 < s2 < 1.0:
-                s = s2
-    if not (0.0 < s < 1.0):
+    s, y = hermite_peak(h, y0, y1, v0, v1)
+    if s < 0.0:
         return
-    h00 = (1.0 + 2.0 * s) * (1.0 - s) ** 2
-    h10 = s * (1.0 - s) ** 2
-    h01 = s * s * (3.0 - 2.0 * s)
-    h11 = s * s * (s - 1.0)
-    y = y0 * h00 + h * v0 * h10 + y1 * h01 + h * v1 * h11
     if y < acc[0]:
         acc[0] = y
         acc[2] = t0 + s * h
@@ -169,6 +147,10 @@ def orbit_design_recorded(r, beta, scene, settings, state, period, samples, dout
     ``period``; 0 when undamped). ``rec_in`` may hold the orbit's ``nr_in > 0``
     records already (:func:`tasks.kernel.orbit.record_orbit`, the same replay):
     then it is not replayed again. Returns the number of samples.
+
+    An undamped orbit that slides takes :func:`tasks.kernel.extrema.orbit_extrema`
+    (samples of the rotation form, extrema polished by Halley's step on the exact
+    motion) at the same sample spacing, and needs no quadrature.
     """
     ctx, work = _context(r, beta, scene, settings)[:2]
     n = (state.shape[0] - 2) // 2
@@ -255,6 +237,19 @@ def orbit_design_recorded(r, beta, scene, settings, state, period, samples, dout
         rows *= 8
     nr = rec_n[0]
     rec = rec[:nr]
+    slip, sliding = _slip_distance(rec, b)
+    if sliding and not damped and C.shape[0] != n:  # exact extrema (tasks.kernel.extrema)
+        om_max = 1.0
+        for seg in (ctx[CTX_SEG_SLIP], ctx[CTX_SEG_STICK]):
+            for k in range(seg.shape[1]):
+                om_max = max(om_max, seg[OMEGA, k])
+        h = min(TWO_PI / samples, math.pi / (MODE_SAMPLES * om_max))
+        h = max(h, TWO_PI / DESIGN_MAX_SAMPLES)
+        count = orbit_extrema(ctx, work, rec, h, c, dout)
+        dout[2 * n + DESIGN_FORCE] = beta
+        dout[2 * n + DESIGN_DISSIPATION] = beta * slip / period
+        dout[2 * n + DESIGN_VISCOUS] = 0.0
+        return count
     # sample times: every phase start and end, and at most h apart inside a phase
     h = min(TWO_PI / samples, 0.5 * min(ctx[CTX_H_SLIP], ctx[CTX_H_STICK]))
     h = max(h, TWO_PI / DESIGN_MAX_SAMPLES)
@@ -264,55 +259,25 @@ def orbit_design_recorded(r, beta, scene, settings, state, period, samples, dout
         if length > 0.0:
             count += max(1, int(math.ceil(length / h)))
     taus = np.empty(count)
-    slip = 0.0
-    sliding = False
     i_s = 0
     for j in range(nr - 1):
         length = rec[j + 1, REC_TAU] - rec[j, REC_TAU]
         if length <= 0.0:
             continue
-        if rec[j, REC_MODE] != 0.0:
-            sliding = True
-            d0 = 0.0
-            d1 = 0.0
-            for i in range(n):
-                d0 += b[i] * rec[j, REC_X + i]
-                d1 += b[i] * rec[j + 1, REC_X + i]
-            slip += abs(d1 - d0)
         k_j = max(1, int(math.ceil(length / h)))
         for k in range(k_j):
             taus[i_s] = rec[j, REC_TAU] + length * k / k_j
             i_s += 1
     taus[count - 1] = rec[nr - 1, REC_TAU]
     states = sample_states(ctx, work, rec, taus)
+    cos_t = np.empty(count)
+    sin_t = np.empty(count)
+    for s in range(count):
+        cos_t[s] = math.cos(taus[s])
+        sin_t[s] = math.sin(taus[s])
+    _amplitudes(ctx, work, rec, taus, states, cos_t, sin_t, c, dout)
     acc = np.empty(6)
     refine = np.empty(2)
-    for which in range(2):
-        cf = 0.0 if which == 0 else -c
-        for i in range(n):
-            acc[0] = np.inf
-            acc[1] = -np.inf
-            acc[4] = np.inf
-            acc[5] = -np.inf
-            for s in range(count - 1):
-                ta = taus[s]
-                tb = taus[s + 1]
-                ya = states[s, i] + cf * math.cos(ta)
-                yb = states[s + 1, i] + cf * math.cos(tb)
-                va = states[s, n + i] - cf * math.sin(ta)
-                vb = states[s + 1, n + i] - cf * math.sin(tb)
-                _hermite_extremes(ta, tb, ya, yb, va, vb, acc)
-            # the interpolated extrema evaluated exactly (error O(h^6), never above)
-            refine[0] = min(acc[2], acc[3])
-            refine[1] = max(acc[2], acc[3])
-            exact = sample_states(ctx, work, rec, refine)
-            lo = acc[4]
-            hi = acc[5]
-            for k in range(2):
-                y = exact[k, i] + cf * math.cos(refine[k])
-                lo = min(lo, y)
-                hi = max(hi, y)
-            dout[which * n + i] = 0.5 * (hi - lo)
     if sliding:
         force = beta
     elif damped:  # stuck the whole (converged) orbit: G0 + Hc cos + Hs sin, no free part left
@@ -331,12 +296,12 @@ def orbit_design_recorded(r, beta, scene, settings, state, period, samples, dout
         for s in range(count - 1):
             ta = taus[s]
             tb = taus[s + 1]
-            ga = _contact_force(p, math.cos(ta), K, states[s, :n].copy(), g_load)
-            gb = _contact_force(p, math.cos(tb), K, states[s + 1, :n].copy(), g_load)
+            ga = _contact_force(p, cos_t[s], K, states[s, :n].copy(), g_load)
+            gb = _contact_force(p, cos_t[s + 1], K, states[s + 1, :n].copy(), g_load)
             _matvec(K, states[s, n:].copy(), kxd)
-            dga = -math.sin(ta) * gp - _dot(g_load, kxd)
+            dga = -sin_t[s] * gp - _dot(g_load, kxd)
             _matvec(K, states[s + 1, n:].copy(), kxd)
-            dgb = -math.sin(tb) * gp - _dot(g_load, kxd)
+            dgb = -sin_t[s + 1] * gp - _dot(g_load, kxd)
             _hermite_extremes(ta, tb, ga, gb, dga, dgb, acc)
         refine[0] = min(acc[2], acc[3])
         refine[1] = max(acc[2], acc[3])
@@ -352,6 +317,72 @@ def orbit_design_recorded(r, beta, scene, settings, state, period, samples, dout
         viscous = _viscous_work(ctx, work, rec, taus, r, C) / period
     dout[2 * n + DESIGN_VISCOUS] = viscous
     return count
+
+
+@njit(cache=True)
+def _amplitudes(ctx, work, rec, taus, states, cos_t, sin_t, c, dout):
+    """Amplitudes (half peak-to-peak) of every coordinate in both frames into ``dout[:2 n]``.
+
+    ``states`` are the exact states at the sample times ``taus`` (``cos_t``, ``sin_t``
+    their cosines and sines), ``c`` the other frame's sign (``q_i - c cos tau``).
+    The extrema between samples are located on the cubic Hermite interpolant
+    (:func:`_hermite_extremes`); the interpolated smallest and largest value of each
+    coordinate are then evaluated exactly, all in one pass over the records.
+    """
+    n = states.shape[1] // 2
+    count = taus.shape[0]
+    acc = np.empty((2 * n, 6))
+    for col in range(2 * n):
+        acc[col, 0] = np.inf
+        acc[col, 1] = -np.inf
+        acc[col, 4] = np.inf
+        acc[col, 5] = -np.inf
+    for s in range(count - 1):
+        ta = taus[s]
+        tb = taus[s + 1]
+        for which in range(2):
+            cf = 0.0 if which == 0 else -c
+            for i in range(n):
+                ya = states[s, i] + cf * cos_t[s]
+                yb = states[s + 1, i] + cf * cos_t[s + 1]
+                va = states[s, n + i] - cf * sin_t[s]
+                vb = states[s + 1, n + i] - cf * sin_t[s + 1]
+                _hermite_extremes(ta, tb, ya, yb, va, vb, acc[which * n + i])
+    # the interpolated extrema evaluated exactly (error O(h^6), never above)
+    times = np.empty(4 * n)
+    for col in range(2 * n):
+        times[2 * col] = min(acc[col, 2], acc[col, 3])
+        times[2 * col + 1] = max(acc[col, 2], acc[col, 3])
+    order = np.argsort(times)
+    exact = sample_states(ctx, work, rec, times[order])
+    for pos in range(4 * n):
+        col = order[pos] // 2
+        i = col % n
+        cf = 0.0 if col < n else -c
+        y = exact[pos, i] + cf * math.cos(times[order[pos]])
+        acc[col, 4] = min(acc[col, 4], y)
+        acc[col, 5] = max(acc[col, 5], y)
+    for col in range(2 * n):
+        dout[col] = 0.5 * (acc[col, 5] - acc[col, 4])
+
+
+@njit(cache=True)
+def _slip_distance(rec, b):
+    """``(sum |delta (b . x)|`` over the slip phases of the records, whether any slips)."""
+    n = b.shape[0]
+    slip = 0.0
+    sliding = False
+    for j in range(rec.shape[0] - 1):
+        if rec[j + 1, REC_TAU] - rec[j, REC_TAU] <= 0.0 or rec[j, REC_MODE] == 0.0:
+            continue
+        sliding = True
+        d0 = 0.0
+        d1 = 0.0
+        for i in range(n):
+            d0 += b[i] * rec[j, REC_X + i]
+            d1 += b[i] * rec[j + 1, REC_X + i]
+        slip += abs(d1 - d0)
+    return slip, sliding
 
 
 @njit(cache=True)

@@ -5,6 +5,8 @@ Used by :mod:`tasks.trajectory` and by the design pass (:mod:`tasks.kernel.desig
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit
 
@@ -21,8 +23,13 @@ from tasks.kernel.layout import (
     CTX_SEG_STICK,
     CTX_T,
     CTX_W,
+    DAMP,
     ETAD_OFF,
+    LEAF,
+    LOAD_CONST,
+    LOAD_COS,
     N_STATS,
+    OMEGA,
     REC_MODE,
     REC_TAU,
     REC_X,
@@ -62,6 +69,45 @@ def trace_cycles(r, beta, scene, settings, X0, mode0, theta, n_cycles, max_recor
     return rec, rec_n[0], out, mode, status
 
 
+@njit(**LEAF)
+def phase_start(ctx, work, rec, j, x, xd):
+    """Set the phase of record row ``j`` (its modal start in the phase's ``seg`` and
+    ``sc``, :mod:`tasks.kernel.phases`) from its recorded state; returns d0 (stick)."""
+    n = x.shape[0]
+    for k in range(n):
+        x[k] = rec[j, REC_X + k]
+        xd[k] = rec[j, REC_X + n + k]
+    mode = int(rec[j, REC_MODE])
+    if mode == 0:
+        return start_stick_in(ctx, x, xd, rec[j, REC_TAU], ctx[CTX_BETA], work[4])
+    _start_slip(
+        ctx[CTX_SEG_SLIP],
+        ctx[CTX_SC],
+        x,
+        xd,
+        rec[j, REC_TAU],
+        float(mode),
+        0.0,
+        ctx[CTX_BETA],
+        ctx[CTX_F_R2],
+        ctx[CTX_PHI_T_GAMMA],
+    )
+    return 0.0
+
+
+@njit(**LEAF)
+def modal_to_state(stick, d0, eta, etad, x, xd, phi, phi_s, T, w, q, off):
+    """``(x, x')`` of a phase's modal state ``(eta, eta')``: a stick phase (contact
+    displacement ``d0``; ``phi_s``, ``T``, ``w``, scratch ``q``) or a slip phase
+    (``phi``); ``off`` the phase's row ETAD_OFF. With ``d0 = 0`` it maps modal
+    accelerations and jerks to physical ones (not for general damping, whose pairs
+    carry an offset). The arrays are the context's (:func:`phase_maps`)."""
+    if stick:
+        _stick_state(phi_s, T, w, d0, eta, etad, q, x, xd, off)
+    else:
+        _slip_state(phi, eta, etad, x, xd, off)
+
+
 @njit(cache=True)
 def sample_states(ctx, work, rec, taus):
     """States ``(x, x')`` at the absolute times ``taus`` (ascending) from the records.
@@ -69,11 +115,26 @@ def sample_states(ctx, work, rec, taus):
     Each phase's recorded start is projected onto its modal coordinates once, for
     all the times that fall in it (the same values as projecting it per time)."""
     n = (rec.shape[1] - REC_X) // 2
-    beta = ctx[CTX_BETA]
+    return sample_motion(ctx, work, rec, taus, np.empty((0, 2 * n)))
+
+
+@njit(cache=True)
+def sample_motion(ctx, work, rec, taus, derivs):
+    """:func:`sample_states`; if ``derivs`` has a row per time, also writes there the
+    accelerations and jerks ``(x'', x''')``: modal ``eta'' = a cos tau + c -
+    2 sigma eta' - Omega^2 eta`` (Eq. (1) of :mod:`tasks.kernel.propagation`, Eq. 4.1
+    damped) and its derivative, mapped as velocities are (not for general damping)."""
+    n = (rec.shape[1] - REC_X) // 2
     out = np.empty((taus.shape[0], 2 * n))
     x = np.empty(n)
     xd = np.empty(n)
     eta, etad, eta_s, etad_s, q, _ = work
+    with_derivs = derivs.shape[0] == taus.shape[0]
+    phi, phi_s, T, w = ctx[CTX_PHI], ctx[CTX_PHI_S], ctx[CTX_T], ctx[CTX_W]
+    off_slip = ctx[CTX_SEG_SLIP][ETAD_OFF]
+    off_stick = ctx[CTX_SEG_STICK][ETAD_OFF]
+    etadd = np.empty(n)
+    etaddd = np.empty(n)
     j = 0
     started = -1  # the phase (record row) whose start is set in seg, sc
     d0 = 0.0
@@ -85,34 +146,27 @@ def sample_states(ctx, work, rec, taus):
         mode = int(rec[j, REC_MODE])
         if j != started:  # a new phase: project its recorded start once
             started = j
-            for k in range(n):
-                x[k] = rec[j, REC_X + k]
-                xd[k] = rec[j, REC_X + n + k]
-            if mode == 0:
-                d0 = start_stick_in(ctx, x, xd, tau0, beta, q)
-            else:
-                _start_slip(
-                    ctx[CTX_SEG_SLIP],
-                    ctx[CTX_SC],
-                    x,
-                    xd,
-                    tau0,
-                    float(mode),
-                    0.0,
-                    beta,
-                    ctx[CTX_F_R2],
-                    ctx[CTX_PHI_T_GAMMA],
-                )
+            d0 = phase_start(ctx, work, rec, j, x, xd)
         if mode == 0:
             seg = ctx[CTX_SEG_STICK]
-            evaluate(seg, ctx[CTX_SC], tau - tau0, eta_s, etad_s)
-            _stick_state(
-                ctx[CTX_PHI_S], ctx[CTX_T], ctx[CTX_W], d0, eta_s, etad_s, q, x, xd, seg[ETAD_OFF]
-            )
+            e, ed, off = eta_s, etad_s, off_stick
         else:
             seg = ctx[CTX_SEG_SLIP]
-            evaluate(seg, ctx[CTX_SC], tau - tau0, eta, etad)
-            _slip_state(ctx[CTX_PHI], eta, etad, x, xd, seg[ETAD_OFF])
+            e, ed, off = eta, etad, off_slip
+        evaluate(seg, ctx[CTX_SC], tau - tau0, e, ed)
+        modal_to_state(mode == 0, d0, e, ed, x, xd, phi, phi_s, T, w, q, off)
         out[i, :n] = x
         out[i, n:] = xd
+        if with_derivs:
+            m = e.shape[0]
+            ct = math.cos(tau)
+            st = math.sin(tau)
+            for k in range(m):
+                w2 = seg[OMEGA, k] ** 2
+                sigma2 = 2.0 * seg[DAMP, k]
+                etadd[k] = seg[LOAD_COS, k] * ct + seg[LOAD_CONST, k] - sigma2 * ed[k] - w2 * e[k]
+                etaddd[k] = -seg[LOAD_COS, k] * st - sigma2 * etadd[k] - w2 * ed[k]
+            modal_to_state(mode == 0, 0.0, etadd[:m], etaddd[:m], x, xd, phi, phi_s, T, w, q, off)
+            derivs[i, :n] = x
+            derivs[i, n:] = xd
     return out
