@@ -48,6 +48,7 @@ from tasks.kernel.layout import (
     TWO_PI,
 )
 from tasks.kernel.linsolve import _solve
+from tasks.kernel.monodromy import exact_jacobian
 from tasks.kernel.phases import _dot, _slip_state, _start_slip, _stick_state, start_stick_in
 from tasks.kernel.propagation import evaluate
 from tasks.kernel.starts import start_phase
@@ -382,6 +383,17 @@ def _fd_jacobian(y0, y1, mode, ctx, work, scale, J, theta, rec, nr):
 
 
 @njit(cache=True)
+def _jacobian(y0, y1, mode, ctx, work, scale, J, theta, rec, nr):
+    """``J = dP/dy - I``: exact along a usable record of the period from ``y0``
+    (:func:`tasks.kernel.monodromy.exact_jacobian`, no period), else by forward
+    differences (:func:`_fd_jacobian`). Returns the full periods used, or -1 as
+    :func:`_fd_jacobian`."""
+    if _records_usable(rec, nr) and exact_jacobian(y0, mode, rec, nr, ctx, work, J):
+        return 0
+    return _fd_jacobian(y0, y1, mode, ctx, work, scale, J, theta, rec, nr)
+
+
+@njit(cache=True)
 def _follow_newton(y0, R0, J, mode, rec, nr, ctx, work, theta, target, scale):
     """Newton's method with Broyden updates of ``J`` on the followed Poincare map.
 
@@ -480,7 +492,7 @@ def _shoot(X0, mode, stats, ctx, work, rtol, floor, max_newton, theta, keep, kep
     dim = y0.shape[0]
     J = np.empty((dim, dim))
     scale = max(_max_abs(X1), 1e-300)
-    used = _fd_jacobian(y0, y1, mode, ctx, work, scale, J, theta, rec, rec_n[0])
+    used = _jacobian(y0, y1, mode, ctx, work, scale, J, theta, rec, rec_n[0])
     if used < 0:
         return False, X0, cycles + dim
     cycles += used
@@ -512,7 +524,7 @@ def _shoot(X0, mode, stats, ctx, work, rtol, floor, max_newton, theta, keep, kep
                 # the updated Jacobian no longer reduces the residual of the
                 # followed map: rebuild it here from followed columns (cheap)
                 # before a step on full periods
-                used = _fd_jacobian(y0, y1, mode, ctx, work, scale, J, theta, rec, rec_n[0])
+                used = _jacobian(y0, y1, mode, ctx, work, scale, J, theta, rec, rec_n[0])
                 if used < 0:
                     return False, X0, cycles + dim
                 cycles += used
@@ -577,7 +589,7 @@ def _shoot(X0, mode, stats, ctx, work, rtol, floor, max_newton, theta, keep, kep
             if fresh or give_up:
                 return False, X0, cycles
             # the updated Jacobian went stale: rebuild it once here
-            used = _fd_jacobian(y0, y1, mode, ctx, work, scale, J, theta, rec, rec_n[0])
+            used = _jacobian(y0, y1, mode, ctx, work, scale, J, theta, rec, rec_n[0])
             if used < 0:
                 return False, X0, cycles + dim
             cycles += used
@@ -625,7 +637,7 @@ def newton_settle(X0, mode, stats, ctx, work, rtol, floor, max_iter, theta):
         scale = max(_max_abs(P), 1e-300)
         # (a period that left the chart has no usable record in it)
         nr = rec_n[0] if _same_chart(m1, mode) else 0
-        used = _fd_jacobian(y, y1, mode, ctx, work, scale, J, theta, rec, nr)
+        used = _jacobian(y, y1, mode, ctx, work, scale, J, theta, rec, nr)
         if used < 0 or not np.all(np.isfinite(J)):
             return False, X, cycles + dim
         cycles += used
