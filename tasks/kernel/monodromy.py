@@ -126,7 +126,7 @@ def exact_jacobian(y0, mode, rec, nr, ctx, work, J):
     sensitivities (module docstring). Returns False (``J`` undefined) where the
     record cannot carry it: non-proportional damping, a graze, a phase shorter
     than ``MIN_PHASE``, an event whose observable does not cross (``y' = 0``),
-    a period ending in the other chart.
+    a period ending in the other chart; ``J`` is then left as it was.
     """
     phi = ctx[CTX_PHI]
     n = ctx[CTX_B].shape[0]
@@ -315,7 +315,12 @@ def exact_jacobian(y0, mode, rec, nr, ctx, work, J):
                         accd += phi[r, k] * dv[k, c]
                     D[r, c] = acc
                     D[n + r, c] = accd
-    # the end state in the chart of the section, minus the identity
+    for r in range(2 * n):
+        for c in range(dim):
+            if not math.isfinite(D[r, c]):
+                return False
+    # the end state in the chart of the section, minus the identity (J written
+    # only here: where False is returned, J is left as it was)
     if mode == 0:
         for c in range(dim):
             acc = 0.0
@@ -336,7 +341,4 @@ def exact_jacobian(y0, mode, rec, nr, ctx, work, J):
                 J[i, c] = D[i, c]
     for i in range(dim):
         J[i, i] -= 1.0
-        for c in range(dim):
-            if not math.isfinite(J[i, c]):
-                return False
     return True

@@ -455,9 +455,11 @@ def _shoot(X0, mode, stats, ctx, work, rtol, floor, max_newton, theta, keep, kep
 
     Works in the coordinates of the phase the section falls in
     (:func:`_reduce`); the section must fall in the same kind of phase (stuck
-    or sliding) before and after the period. The Jacobian is built once by
-    forward differences (one period per column) and then updated by Broyden's
-    rank-one formula (one period per iteration). A fixed point is accepted only
+    or sliding) before and after the period. The Jacobian is exact along the
+    recorded period of each verified iterate (:func:`_jacobian`,
+    :mod:`tasks.kernel.monodromy`), or built by forward differences where the
+    record cannot carry it, and updated by Broyden's rank-one formula between
+    full periods. A fixed point is accepted only
     if its residual is below ``rtol`` of the motion (or of ``floor``, the static
     response) and it is not unstable (spectral radius of ``dP/dy`` at most
     1 + 1e-6): shooting must find the attractor, not any periodic orbit.
@@ -550,7 +552,11 @@ def _shoot(X0, mode, stats, ctx, work, rtol, floor, max_newton, theta, keep, kep
                         X1 = X1n
                         rec, rec_t = rec_t, rec
                         rec_n, rec_tn = rec_tn, rec_n
-                        fresh = False
+                        # the exact Jacobian at the new iterate replaces the
+                        # Broyden-updated one (no period: monodromy.py)
+                        fresh = _records_usable(rec, rec_n[0]) and exact_jacobian(
+                            y0, mode, rec, rec_n[0], ctx, work, J
+                        )
                         continue
                 if give_up:  # the full period did not confirm the step
                     return False, X0, cycles
@@ -580,7 +586,9 @@ def _shoot(X0, mode, stats, ctx, work, rtol, floor, max_newton, theta, keep, kep
                     rec, rec_t = rec_t, rec
                     rec_n, rec_tn = rec_tn, rec_n
                     accepted = True
-                    fresh = False
+                    fresh = _records_usable(rec, rec_n[0]) and exact_jacobian(
+                        y0, mode, rec, rec_n[0], ctx, work, J
+                    )
                     break
             if give_up:  # no halved steps in a warm start
                 break
