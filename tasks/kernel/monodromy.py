@@ -58,6 +58,7 @@ from tasks.kernel.layout import (
     ETAD0,
     EV_END,
     EV_GRAZE,
+    LEAF,
     LOAD_CONST,
     LOAD_COS,
     OMEGA,
@@ -74,38 +75,36 @@ from tasks.kernel.propagation import evaluate
 MIN_PHASE = 1e-9
 
 
-@njit(cache=True)
-def _modal_basis(seg, sc, t, r11, r21, r12, r22, c1, c2, eta, etad):
+@njit(**LEAF)
+def _modal_basis(seg, sc, t, s, basis, eta, etad):
     """Per mode, the displacement and velocity at ``t`` of the phase ``seg, sc``
-    started from a unit displacement (``r11, r21``), a unit velocity
-    (``r12, r22``) and under a unit constant load (``c1, c2``), without the
-    harmonic load: the columns of the modal transition matrix."""
+    started from a unit displacement (rows 0, 1 of ``basis``), a unit velocity
+    (rows 2, 3) and under a unit constant load (rows 4, 5), without the harmonic
+    load: the columns of the modal transition matrix. ``s``: scratch of
+    ``seg``'s shape."""
     m = seg.shape[1]
-    s = seg.copy()
+    for i in range(seg.shape[0]):
+        for k in range(m):
+            s[i, k] = seg[i, k]
     for k in range(m):
         s[LOAD_COS, k] = 0.0
         s[LOAD_CONST, k] = 0.0
         s[ETA0, k] = 1.0
         s[ETAD0, k] = 0.0
-    evaluate(s, sc, t, eta, etad)
-    for k in range(m):
-        r11[k] = eta[k]
-        r21[k] = etad[k]
-        s[ETA0, k] = 0.0
-        s[ETAD0, k] = 1.0
-    evaluate(s, sc, t, eta, etad)
-    for k in range(m):
-        r12[k] = eta[k]
-        r22[k] = etad[k]
-        s[ETAD0, k] = 0.0
-        s[LOAD_CONST, k] = 1.0
-    evaluate(s, sc, t, eta, etad)
-    for k in range(m):
-        c1[k] = eta[k]
-        c2[k] = etad[k]
+    for j in range(3):
+        evaluate(s, sc, t, eta, etad)
+        for k in range(m):
+            basis[2 * j, k] = eta[k]
+            basis[2 * j + 1, k] = etad[k]
+            if j == 0:
+                s[ETA0, k] = 0.0
+                s[ETAD0, k] = 1.0
+            else:
+                s[ETAD0, k] = 0.0
+                s[LOAD_CONST, k] = 1.0
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def _modal_rate(seg, k, tau, e, v):
     """Acceleration of mode ``k`` of a phase at ``tau`` with displacement ``e`` and
     velocity ``v``: ``a cos(tau) + c - 2 sigma v - Omega^2 e`` (Eq. (1))."""
@@ -164,21 +163,22 @@ def exact_jacobian(y0, mode, rec, nr, ctx, work, J):
         for j in range(2 * n):
             D[j, j] = 1.0
     dtau = np.zeros(dim)
-    de = np.empty((n, dim))  # modal start (then end) displacements, velocities, loads
-    dv = np.empty((n, dim))
-    dc = np.zeros((n, dim))
+    # modal start (then end) displacements, velocities and loads, and a scratch
+    mats = np.zeros((4, n, dim))
+    de = mats[0]
+    dv = mats[1]
+    dc = mats[2]
+    tmp = mats[3]
     dd0 = np.zeros(dim)
-    tmp = np.empty((n, dim))
-    r11 = np.empty(n)
-    r21 = np.empty(n)
-    r12 = np.empty(n)
-    r22 = np.empty(n)
-    c1 = np.empty(n)
-    c2 = np.empty(n)
-    ee = np.empty(n)
-    ve = np.empty(n)
-    x = np.empty(n)
-    xd = np.empty(n)
+    vecs = np.empty((10, n))
+    basis = vecs[:6]
+    r11, r21, r12, r22, c1, c2 = basis[0], basis[1], basis[2], basis[3], basis[4], basis[5]
+    ee = vecs[6]
+    ve = vecs[7]
+    x = vecs[8]
+    xd = vecs[9]
+    s_slip = np.empty_like(ctx[CTX_SEG_SLIP])
+    s_stick = np.empty_like(ctx[CTX_SEG_STICK])
     for j in range(nr - 1):
         if rec[j + 1, REC_KIND] == EV_GRAZE:
             return False
@@ -246,7 +246,7 @@ def exact_jacobian(y0, mode, rec, nr, ctx, work, J):
                     de[k, c] = acc
                     dv[k, c] = accd
                     dc[k, c] = 0.0
-        _modal_basis(seg, sc, t, r11, r21, r12, r22, c1, c2, eta, etad)
+        _modal_basis(seg, sc, t, s_stick if stuck else s_slip, basis, eta, etad)
         _, dy = evaluate(seg, sc, t, eta, etad)
         for k in range(m):
             ee[k] = eta[k]
