@@ -6,8 +6,9 @@ events located by Newton's method to rounding: :func:`_follow_records`), with
 truncation and rounding both far below the tolerance. Checked at the converged
 orbits of stick-slip and continuous points of 2DOF and 5DOF ground contacts
 (Figs. 4 and 10b), a base-fixed contact, a contact between masses and a
-Rayleigh-damped scene; where it cannot carry a record it must say so (False)
-and shooting then takes the forward differences.
+Rayleigh-damped scene; where it cannot carry a record (non-proportional
+damping, an event near tangency) it must say so (False) and shooting then takes
+the forward differences.
 """
 
 from __future__ import annotations
@@ -31,10 +32,10 @@ from tasks.kernel.layout import (
     OUT_REGIME,
     REC_X,
 )
-from tasks.kernel.monodromy import exact_jacobian
 from tasks.kernel.point import run_points_seeded
 from tasks.kernel.shooting import (
     REC_ROWS,
+    _exact,
     _expand,
     _follow_records,
     _period_recorded,
@@ -67,9 +68,9 @@ def _exact_and_central(r, beta, scene, settings, row, rel_step):
     nr = rec_n[0]
     if not _records_usable(rec, nr):
         return J, C, -1
-    if not exact_jacobian(y0, mode, rec, nr, ctx, work, J):
-        return J, C, 0
     scale = np.max(np.abs(X0))
+    if not _exact(y0, mode, rec, nr, ctx, work, J, scale):
+        return J, C, 0
     Pp = np.empty(2 * n)
     Pm = np.empty(2 * n)
     for k in range(dim):
@@ -134,10 +135,11 @@ def test_exact_jacobian_matches_central_differences(name):
     scene, beta_max = SCENES[name]
     args, settings, orbits = _orbits(scene, beta_max)
     errors = {STICK_SLIP: [], CONTINUOUS: []}
+    refused = 0
     for r, beta, regime, row in orbits:
         J, C, ok = _exact_and_central(r, beta, args, settings, row, 1e-6)
-        if ok != 1:
-            assert ok != 0, f"{name}: exact refused a usable record at r={r}, beta={beta}"
+        if ok != 1:  # (0: refused near a tangency, as the differences would be)
+            refused += ok == 0
             continue
         dP = C + np.eye(C.shape[0])
         errors[regime].append(np.max(np.abs(J - C)) / np.max(np.abs(dP)))
@@ -145,6 +147,7 @@ def test_exact_jacobian_matches_central_differences(name):
         assert len(errs) >= 3, (name, regime, len(errs))
         assert np.median(errs) < 1e-7, (name, regime, np.median(errs))
         assert np.max(errs) < 1e-6, (name, regime, np.max(errs))
+    assert refused <= 0.2 * len(orbits), (name, refused, len(orbits))
 
 
 def test_non_proportional_damping_is_left_to_differences():

@@ -115,7 +115,7 @@ def _modal_rate(seg, k, tau, e, v):
 
 
 @njit(cache=True)
-def exact_jacobian(y0, mode, rec, nr, ctx, work, J):
+def exact_jacobian(y0, mode, rec, nr, ctx, work, J, probe):
     """``J = dP/dy - I`` of the recorded period from ``y0`` (chart of ``mode``), exactly.
 
     ``rec`` holds the ``nr`` rows of the period from the expanded ``y0``
@@ -125,7 +125,13 @@ def exact_jacobian(y0, mode, rec, nr, ctx, work, J):
     sensitivities (module docstring). Returns False (``J`` undefined) where the
     record cannot carry it: non-proportional damping, a graze, a phase shorter
     than ``MIN_PHASE``, an event whose observable does not cross (``y' = 0``),
-    a period ending in the other chart; ``J`` is then left as it was.
+    a period ending in the other chart, or an event so close to tangency
+    that a difference column could not follow it: where a change of ``y`` by
+    ``probe[k]`` (the step of column k of
+    :func:`tasks.kernel.shooting._fd_jacobian`) moves a phase's end by more than
+    ``probe[-1]`` times its length (``FD_REACH``; the events a difference column
+    follows, :func:`tasks.kernel.shooting._follow_records`), so the map is used
+    exactly where its differences were. ``J`` is then left as it was.
     """
     phi = ctx[CTX_PHI]
     n = ctx[CTX_B].shape[0]
@@ -278,7 +284,11 @@ def exact_jacobian(y0, mode, rec, nr, ctx, work, J):
                     acc += seg[ALPHA, k] * de[k, c] + seg[DELTA, k] * dv[k, c]
                 if stuck:
                     acc -= g_d0 * dd0[c]
-                dtau[c] = -acc / dy
+                shift = -acc / dy
+                # the phase's end moves by (shift - dtau) per unit of y_c
+                if abs(shift - dtau[c]) * probe[c] > probe[dim] * max(t, 1e-3):
+                    return False
+                dtau[c] = shift
             for k in range(m):
                 ve_k = ve[k]
                 ae_k = _modal_rate(seg, k, tau_e, ee[k], ve_k)

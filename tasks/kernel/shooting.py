@@ -383,12 +383,33 @@ def _fd_jacobian(y0, y1, mode, ctx, work, scale, J, theta, rec, nr):
 
 
 @njit(cache=True)
+def _probe(y0, scale):
+    """The steps of :func:`_fd_jacobian`'s columns at ``y0``, then ``FD_REACH``: how far
+    :func:`tasks.kernel.monodromy.exact_jacobian` checks that the events follow."""
+    dim = y0.shape[0]
+    probe = np.empty(dim + 1)
+    for k in range(dim):
+        probe[k] = 1e-7 * max(abs(y0[k]), 1e-3 * scale)
+    probe[dim] = FD_REACH
+    return probe
+
+
+@njit(cache=True)
+def _exact(y0, mode, rec, nr, ctx, work, J, scale):
+    """:func:`tasks.kernel.monodromy.exact_jacobian` on a usable record (``J`` left as
+    it was where it returns False); ``scale``: the motion, as for :func:`_probe`."""
+    if not _records_usable(rec, nr):
+        return False
+    return exact_jacobian(y0, mode, rec, nr, ctx, work, J, _probe(y0, max(scale, 1e-300)))
+
+
+@njit(cache=True)
 def _jacobian(y0, y1, mode, ctx, work, scale, J, theta, rec, nr):
     """``J = dP/dy - I``: exact along a usable record of the period from ``y0``
     (:func:`tasks.kernel.monodromy.exact_jacobian`, no period), else by forward
     differences (:func:`_fd_jacobian`). Returns the full periods used, or -1 as
     :func:`_fd_jacobian`."""
-    if _records_usable(rec, nr) and exact_jacobian(y0, mode, rec, nr, ctx, work, J):
+    if _exact(y0, mode, rec, nr, ctx, work, J, scale):
         return 0
     return _fd_jacobian(y0, y1, mode, ctx, work, scale, J, theta, rec, nr)
 
@@ -554,9 +575,7 @@ def _shoot(X0, mode, stats, ctx, work, rtol, floor, max_newton, theta, keep, kep
                         rec_n, rec_tn = rec_tn, rec_n
                         # the exact Jacobian at the new iterate replaces the
                         # Broyden-updated one (no period: monodromy.py)
-                        fresh = _records_usable(rec, rec_n[0]) and exact_jacobian(
-                            y0, mode, rec, rec_n[0], ctx, work, J
-                        )
+                        fresh = _exact(y0, mode, rec, rec_n[0], ctx, work, J, _max_abs(X1))
                         continue
                 if give_up:  # the full period did not confirm the step
                     return False, X0, cycles
@@ -586,9 +605,7 @@ def _shoot(X0, mode, stats, ctx, work, rtol, floor, max_newton, theta, keep, kep
                     rec, rec_t = rec_t, rec
                     rec_n, rec_tn = rec_tn, rec_n
                     accepted = True
-                    fresh = _records_usable(rec, rec_n[0]) and exact_jacobian(
-                        y0, mode, rec, rec_n[0], ctx, work, J
-                    )
+                    fresh = _exact(y0, mode, rec, rec_n[0], ctx, work, J, _max_abs(X1))
                     break
             if give_up:  # no halved steps in a warm start
                 break
@@ -618,7 +635,11 @@ def newton_settle(X0, mode, stats, ctx, work, rtol, floor, max_iter, theta):
     fixed point is accepted only if its residual is below ``rtol`` of the motion
     (or of ``floor``) and it is not unstable (spectral radius of the Jacobian at
     the fixed point at most 1 + 1e-6), so it is an attractor, reached from the
-    point's own trajectory. Costs ``dim + 1`` periods per step.
+    point's own trajectory. Costs ``dim + 1`` periods per step. Its Jacobians stay
+    forward differences (:func:`_fd_jacobian`): a difference column that cannot
+    follow the period ends the settle early, where the exact Jacobian would let
+    Newton's method wander on a map cut by events (a long creep then ran out of
+    its work budget instead of settling as no motion).
 
     Returns ``(success, X, cycles_used)``; on success ``stats`` holds the
     statistics of the verified period ``X -> P(X)``.
@@ -645,7 +666,7 @@ def newton_settle(X0, mode, stats, ctx, work, rtol, floor, max_iter, theta):
         scale = max(_max_abs(P), 1e-300)
         # (a period that left the chart has no usable record in it)
         nr = rec_n[0] if _same_chart(m1, mode) else 0
-        used = _jacobian(y, y1, mode, ctx, work, scale, J, theta, rec, nr)
+        used = _fd_jacobian(y, y1, mode, ctx, work, scale, J, theta, rec, nr)
         if used < 0 or not np.all(np.isfinite(J)):
             return False, X, cycles + dim
         cycles += used
