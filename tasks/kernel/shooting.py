@@ -48,6 +48,7 @@ from tasks.kernel.layout import (
     TWO_PI,
 )
 from tasks.kernel.linsolve import _solve
+from tasks.kernel.monodromy import exact_jacobian
 from tasks.kernel.phases import _dot, _slip_state, _start_slip, _stick_state, start_stick_in
 from tasks.kernel.propagation import evaluate
 from tasks.kernel.starts import start_phase
@@ -382,6 +383,38 @@ def _fd_jacobian(y0, y1, mode, ctx, work, scale, J, theta, rec, nr):
 
 
 @njit(cache=True)
+def _probe(y0, scale):
+    """The steps of :func:`_fd_jacobian`'s columns at ``y0``, then ``FD_REACH``: how far
+    :func:`tasks.kernel.monodromy.exact_jacobian` checks that the events follow."""
+    dim = y0.shape[0]
+    probe = np.empty(dim + 1)
+    for k in range(dim):
+        probe[k] = 1e-7 * max(abs(y0[k]), 1e-3 * scale)
+    probe[dim] = FD_REACH
+    return probe
+
+
+@njit(cache=True)
+def _exact(y0, mode, rec, nr, ctx, work, J, scale):
+    """:func:`tasks.kernel.monodromy.exact_jacobian` on a usable record (``J`` left as
+    it was where it returns False); ``scale``: the motion, as for :func:`_probe`."""
+    if not _records_usable(rec, nr):
+        return False
+    return exact_jacobian(y0, mode, rec, nr, ctx, work, J, _probe(y0, max(scale, 1e-300)))
+
+
+@njit(cache=True)
+def _jacobian(y0, y1, mode, ctx, work, scale, J, theta, rec, nr):
+    """``J = dP/dy - I``: exact along a usable record of the period from ``y0``
+    (:func:`tasks.kernel.monodromy.exact_jacobian`, no period), else by forward
+    differences (:func:`_fd_jacobian`). Returns the full periods used, or -1 as
+    :func:`_fd_jacobian`."""
+    if _exact(y0, mode, rec, nr, ctx, work, J, scale):
+        return 0
+    return _fd_jacobian(y0, y1, mode, ctx, work, scale, J, theta, rec, nr)
+
+
+@njit(cache=True)
 def _follow_newton(y0, R0, J, mode, rec, nr, ctx, work, theta, target, scale):
     """Newton's method with Broyden updates of ``J`` on the followed Poincare map.
 
@@ -443,9 +476,11 @@ def _shoot(X0, mode, stats, ctx, work, rtol, floor, max_newton, theta, keep, kep
 
     Works in the coordinates of the phase the section falls in
     (:func:`_reduce`); the section must fall in the same kind of phase (stuck
-    or sliding) before and after the period. The Jacobian is built once by
-    forward differences (one period per column) and then updated by Broyden's
-    rank-one formula (one period per iteration). A fixed point is accepted only
+    or sliding) before and after the period. The Jacobian is exact along the
+    recorded period of each verified iterate (:func:`_jacobian`,
+    :mod:`tasks.kernel.monodromy`), or built by forward differences where the
+    record cannot carry it, and updated by Broyden's rank-one formula between
+    full periods. A fixed point is accepted only
     if its residual is below ``rtol`` of the motion (or of ``floor``, the static
     response) and it is not unstable (spectral radius of ``dP/dy`` at most
     1 + 1e-6): shooting must find the attractor, not any periodic orbit.
@@ -480,7 +515,7 @@ def _shoot(X0, mode, stats, ctx, work, rtol, floor, max_newton, theta, keep, kep
     dim = y0.shape[0]
     J = np.empty((dim, dim))
     scale = max(_max_abs(X1), 1e-300)
-    used = _fd_jacobian(y0, y1, mode, ctx, work, scale, J, theta, rec, rec_n[0])
+    used = _jacobian(y0, y1, mode, ctx, work, scale, J, theta, rec, rec_n[0])
     if used < 0:
         return False, X0, cycles + dim
     cycles += used
@@ -512,7 +547,7 @@ def _shoot(X0, mode, stats, ctx, work, rtol, floor, max_newton, theta, keep, kep
                 # the updated Jacobian no longer reduces the residual of the
                 # followed map: rebuild it here from followed columns (cheap)
                 # before a step on full periods
-                used = _fd_jacobian(y0, y1, mode, ctx, work, scale, J, theta, rec, rec_n[0])
+                used = _jacobian(y0, y1, mode, ctx, work, scale, J, theta, rec, rec_n[0])
                 if used < 0:
                     return False, X0, cycles + dim
                 cycles += used
@@ -538,7 +573,9 @@ def _shoot(X0, mode, stats, ctx, work, rtol, floor, max_newton, theta, keep, kep
                         X1 = X1n
                         rec, rec_t = rec_t, rec
                         rec_n, rec_tn = rec_tn, rec_n
-                        fresh = False
+                        # the exact Jacobian at the new iterate replaces the
+                        # Broyden-updated one (no period: monodromy.py)
+                        fresh = _exact(y0, mode, rec, rec_n[0], ctx, work, J, _max_abs(X1))
                         continue
                 if give_up:  # the full period did not confirm the step
                     return False, X0, cycles
@@ -568,7 +605,7 @@ def _shoot(X0, mode, stats, ctx, work, rtol, floor, max_newton, theta, keep, kep
                     rec, rec_t = rec_t, rec
                     rec_n, rec_tn = rec_tn, rec_n
                     accepted = True
-                    fresh = False
+                    fresh = _exact(y0, mode, rec, rec_n[0], ctx, work, J, _max_abs(X1))
                     break
             if give_up:  # no halved steps in a warm start
                 break
@@ -577,7 +614,7 @@ def _shoot(X0, mode, stats, ctx, work, rtol, floor, max_newton, theta, keep, kep
             if fresh or give_up:
                 return False, X0, cycles
             # the updated Jacobian went stale: rebuild it once here
-            used = _fd_jacobian(y0, y1, mode, ctx, work, scale, J, theta, rec, rec_n[0])
+            used = _jacobian(y0, y1, mode, ctx, work, scale, J, theta, rec, rec_n[0])
             if used < 0:
                 return False, X0, cycles + dim
             cycles += used
@@ -598,7 +635,11 @@ def newton_settle(X0, mode, stats, ctx, work, rtol, floor, max_iter, theta):
     fixed point is accepted only if its residual is below ``rtol`` of the motion
     (or of ``floor``) and it is not unstable (spectral radius of the Jacobian at
     the fixed point at most 1 + 1e-6), so it is an attractor, reached from the
-    point's own trajectory. Costs ``dim + 1`` periods per step.
+    point's own trajectory. Costs ``dim + 1`` periods per step. Its Jacobians stay
+    forward differences (:func:`_fd_jacobian`): a difference column that cannot
+    follow the period ends the settle early, where the exact Jacobian would let
+    Newton's method wander on a map cut by events (a long creep then ran out of
+    its work budget instead of settling as no motion).
 
     Returns ``(success, X, cycles_used)``; on success ``stats`` holds the
     statistics of the verified period ``X -> P(X)``.
