@@ -49,7 +49,6 @@ from tasks.result import COORD_ATTRS, FIELDS, MASS_FIELDS, field_attrs
 
 #: Closed-form methods stored for every scene (``analysis.boundaries``).
 BOUNDARY_METHODS = ("paper", "exact")
-_BOUNDARY_BLOCK = 256  # r values per call of analysis.boundaries (bounded memory)
 #: Elements per netCDF (HDF5) chunk of a per-point variable: small enough that
 #: the bounded chunk cache below holds every chunk being filled, whatever the
 #: size of the grid (512 KiB of float64).
@@ -126,18 +125,11 @@ def global_attrs(study: Study, command: str | None = None) -> dict[str, str]:
 
 # --------------------------------------------------------------------------- boundaries
 def _boundaries(scene, r: np.ndarray, method: str) -> tuple[np.ndarray, np.ndarray]:
-    """``analysis.boundaries`` (the one home of the closed forms)."""
-    from analysis import boundaries
+    """``analysis.boundaries`` (the one home of the closed forms), in blocks of r values
+    (bounded memory), remembered: an adaptive plane's hint computed them already."""
+    from analysis.closed_form import boundaries_along
 
-    r = np.asarray(r, dtype=float)
-    cont = np.empty(r.shape)
-    motion = np.empty(r.shape)
-    for i in range(0, r.size, _BOUNDARY_BLOCK):  # blocks: the exact method's work
-        sl = slice(i, i + _BOUNDARY_BLOCK)  # arrays grow with the number of r values
-        c, m = boundaries(scene, r.ravel()[sl], method=method)
-        cont.ravel()[sl] = np.broadcast_to(np.asarray(c, dtype=float), r.ravel()[sl].shape)
-        motion.ravel()[sl] = np.broadcast_to(np.asarray(m, dtype=float), r.ravel()[sl].shape)
-    return cont, motion
+    return boundaries_along(scene, r, method)
 
 
 def _boundary_vars(plan: ScenePlan, axes: dict[str, np.ndarray]) -> dict[str, xr.Variable]:
