@@ -23,6 +23,7 @@ complete.
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 import os
@@ -89,6 +90,13 @@ def _fill(dtype: str) -> object:
 
 def versions() -> dict[str, str]:
     """Versions of Python and of the packages that made the result."""
+    return dict(_versions())
+
+
+@functools.cache
+def _versions() -> dict[str, str]:
+    """:func:`versions`, looked up once per process (reading the installed packages'
+    metadata costs about 25 ms of CPU at every result written)."""
     from frictionregimes import __version__
 
     out = {"python": platform.python_version()}
