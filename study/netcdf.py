@@ -240,8 +240,11 @@ def scalar_ratios(spec) -> dict[str, float]:
     return out
 
 
-def scene_dataset(plan: ScenePlan, study: Study) -> tuple[xr.Dataset, dict[str, dict]]:
-    """The Dataset of one scene with lazy fill values, and its netCDF encoding."""
+def scene_dataset(
+    plan: ScenePlan, study: Study, placeholders: bool = False
+) -> tuple[xr.Dataset, dict[str, dict]]:
+    """The Dataset of one scene with lazy fill values, and its netCDF encoding
+    (``placeholders``: the per-point variables as :func:`_placeholder`, for the file)."""
     spec = plan.spec
     axes = plan.axes()
     dims, shape, variables = plan.layout()
@@ -278,6 +281,8 @@ def scene_dataset(plan: ScenePlan, study: Study) -> tuple[xr.Dataset, dict[str, 
         of_contacts = multi and name in contacts.MULTI_DTYPES
         vattrs = contacts.attrs(name, spec.structure.n_contacts) if of_contacts else _attrs(name)
         data_vars[name] = xr.Variable(vdims, fill, vattrs)
+        if placeholders:  # built so at once: assigning them later costs an alignment
+            data_vars[name] = _placeholder(data_vars[name])
         encoding[name] = enc
     bounds = _boundary_vars(plan, axes)
     data_vars.update(bounds)
@@ -403,11 +408,9 @@ def _define_scene(group, plan: ScenePlan, study: Study, gattrs: dict, values: _D
     except ImportError:  # xarray < 2025.9
         from xarray.backends.api import dump_to_store
 
-    ds, enc = scene_dataset(plan, study)
+    ds, enc = scene_dataset(plan, study, placeholders=True)
     if gattrs:
         ds = ds.assign_attrs({**gattrs, **ds.attrs})
-    placeholders = set(plan.layout()[2])
-    ds = ds.assign({n: _placeholder(ds[n]) for n in placeholders})
     dump_to_store(ds, NetCDF4DataStore(group), values, encoding=enc)
     for var in group.variables.values():
         _size_cache(var)
@@ -439,7 +442,7 @@ def _placeholder(var: xr.Variable) -> xr.Variable:
     if var.dtype != bool:
         return var
     data = np.broadcast_to(np.zeros((), dtype=np.int8), var.shape)
-    return var.copy(data=data).assign_attrs(dtype="bool")
+    return xr.Variable(var.dims, data, {**var.attrs, "dtype": "bool"})
 
 
 def _is_placeholder(source) -> bool:
