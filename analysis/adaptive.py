@@ -61,9 +61,10 @@ def closed_form_hint(
     -------
     numpy.ndarray of bool, shape ``(r.size, beta.size)``
     """
-    from analysis import boundaries
+    from analysis.closed_form import boundaries_along
 
-    cont, motion = boundaries(scene, np.asarray(r, dtype=float), method=method)
+    # the same curves the result file stores (study.netcdf): computed once per plane
+    cont, motion = boundaries_along(scene, np.asarray(r, dtype=float), method=method)
     n = np.asarray(r).size
     cont = np.broadcast_to(np.asarray(cont, dtype=float), (n,))
     motion = np.broadcast_to(np.asarray(motion, dtype=float), (n,))

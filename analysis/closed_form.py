@@ -68,6 +68,8 @@ formulas with full matrices; damped scenes take the damped closed forms of
 
 from __future__ import annotations
 
+import threading
+from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
@@ -81,6 +83,7 @@ from tasks.scene import Scene
 __all__ = [
     "METHODS",
     "boundaries",
+    "boundaries_along",
     "continuous_bound",
     "generalised_S",
     "held_resonances",
@@ -558,6 +561,61 @@ def boundaries(scene: Scene, r: ArrayLike, method: str = "paper") -> tuple[np.nd
     """
     _check_method(method)
     return continuous_bound(scene, r, method), motion_bound(scene, r)
+
+
+#: r values per call of :func:`boundaries` in :func:`boundaries_along` (bounded memory:
+#: the exact method's work arrays grow with the number of r values).
+BOUNDARY_BLOCK = 256
+#: Results of :func:`boundaries_along` remembered (the last ones asked for): an
+#: adaptive plane's hint and its result file ask for the same curves of one scene.
+REMEMBERED = 8
+_remembered: OrderedDict = OrderedDict()
+_remembered_lock = threading.Lock()
+
+
+def boundaries_along(
+    scene: Scene, r: ArrayLike, method: str = "paper"
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`boundaries` along the axis ``r``, in blocks of :data:`BOUNDARY_BLOCK` r
+    values, the last :data:`REMEMBERED` answers remembered.
+
+    Every r value is computed on its own (the blocks change no number), so the
+    curves equal those of :func:`boundaries`; a second call with the same scene,
+    method and r values (an adaptive map's closed-form hint, then its result file)
+    returns them without computing them again.
+
+    Returns
+    -------
+    beta_continuous, beta_motion : ndarray
+        New arrays of shape ``np.shape(r)`` (the caller may change them).
+    """
+    _check_method(method)
+    r = np.asarray(r, dtype=float)
+    key = (scene, method, r.shape, r.tobytes())
+    try:
+        hash(key)
+    except TypeError:  # a scene that cannot be a key: computed every time
+        key = None
+    found = None
+    with _remembered_lock:
+        if key is not None and (found := _remembered.get(key)) is not None:
+            _remembered.move_to_end(key)
+    if found is None:
+        flat = r.ravel()
+        cont = np.empty(flat.shape)
+        motion = np.empty(flat.shape)
+        for i in range(0, flat.size, BOUNDARY_BLOCK):
+            sl = slice(i, i + BOUNDARY_BLOCK)
+            c, m = boundaries(scene, flat[sl], method=method)
+            cont[sl] = np.broadcast_to(np.asarray(c, dtype=float), flat[sl].shape)
+            motion[sl] = np.broadcast_to(np.asarray(m, dtype=float), flat[sl].shape)
+        found = (cont.reshape(r.shape), motion.reshape(r.shape))
+        with _remembered_lock:
+            if key is not None:
+                _remembered[key] = found
+            while len(_remembered) > REMEMBERED:
+                _remembered.popitem(last=False)
+    return found[0].copy(), found[1].copy()
 
 
 def predict(scene: Scene, r: ArrayLike, beta: ArrayLike, method: str = "paper") -> np.ndarray:

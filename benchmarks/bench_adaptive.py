@@ -28,8 +28,10 @@ base contact on m3, 6DOF ground contact on m5), or ``--scenes`` (also
 ground contact on m3 with kappa 2; :data:`OTHER_SCENES`). Prints the
 simulated fraction, levels, point lists, wall seconds of both and their ratio,
 the CPU seconds of both (this process and the workers: a busy machine stretches
-the wall seconds of one run more than the other's, not the CPU seconds) and
-their ratio, the labels equal to the dense grid's and the verification sample;
+the wall seconds of one run more than the other's, not the CPU seconds), the
+adaptive study's share in this process (the client: refinement, Dask client,
+saving, the result file) and the ratio, the labels equal to the dense grid's and
+the verification sample;
 ``--barriers`` adds the old wave-by-wave refinement
 (``study.adaptive.AdaptivePlan.barriers``), ``--before`` the adaptive study as it
 was before its point lists were seeded from the solved orbits of their cells'
@@ -217,11 +219,11 @@ def _run(
         for name, value in BEFORE.items():
             setattr(AdaptivePlan, name, value)
     try:
-        cpu = _cpu(client)
+        cpu, own = _cpu(client), time.process_time()
         t = time.perf_counter()
         run_study(Study.from_toml(path), out, client=client, progress=False, stream=log)
         seconds = time.perf_counter() - t
-        cpu = _cpu(client) - cpu
+        cpu, own = _cpu(client) - cpu, time.process_time() - own
     finally:
         AdaptivePlan.barriers = False
         for name, value in defaults.items():
@@ -230,6 +232,7 @@ def _run(
         arrays = {k: ds[k].values for k in ("regime", "simulated") if k in ds}
         arrays["attrs"] = dict(ds.attrs)
     arrays["cpu"] = cpu
+    arrays["client_cpu"] = own  # this process: the client (and the scheduler's thread)
     out.unlink()
     return seconds, arrays, log.getvalue()
 
@@ -272,10 +275,10 @@ def cluster_main(args, n_r: int, n_beta: int) -> int:
         )
         print(
             "| scene | points | % simulated | levels | point lists | adaptive s "
-            "| dense s | dense / adaptive | adaptive CPU s | dense CPU s | CPU ratio "
-            "| labels equal to dense | verification |"
+            "| dense s | dense / adaptive | adaptive CPU s | of which client | dense CPU s "
+            "| CPU ratio | labels equal to dense | verification |"
         )
-        print("|" + "---|" * 13)
+        print("|" + "---|" * 14)
         for sc in scenes:
             if args.before:  # just before the current study: the same load
                 before = _run(text(sc, (n_r, n_beta), mode), folder, client, before=True)
@@ -295,7 +298,8 @@ def cluster_main(args, n_r: int, n_beta: int) -> int:
                 equal = f"{percent(same, n, 4)} ({n - same} differ)"
             print(
                 f"| {sc['name']} | {n_r * n_beta:,} | {frac:.2f} | {levels} | {lists} "
-                f"| {sec:.1f} | {dense_s} | {ratio} | {arr['cpu']:.1f} | {dense_cpu} "
+                f"| {sec:.1f} | {dense_s} | {ratio} | {arr['cpu']:.1f} "
+                f"| {arr['client_cpu']:.2f} | {dense_cpu} "
                 f"| {cpu_ratio} | {equal} | {verify} |",
                 flush=True,
             )
@@ -311,7 +315,8 @@ def cluster_main(args, n_r: int, n_beta: int) -> int:
                     b_cpu_ratio = f"{d_arr['cpu'] / b_arr['cpu']:.1f}"
                 print(
                     f"| {sc['name']}, before | | | | {b_lists} | {b_sec:.1f} | | {b_ratio} "
-                    f"| {b_arr['cpu']:.1f} | | {b_cpu_ratio} | same map: {same} | |",
+                    f"| {b_arr['cpu']:.1f} | {b_arr['client_cpu']:.2f} | | {b_cpu_ratio} "
+                    f"| same map: {same} | |",
                     flush=True,
                 )
             if args.barriers:
@@ -321,7 +326,7 @@ def cluster_main(args, n_r: int, n_beta: int) -> int:
                 )
                 print(
                     f"| {sc['name']}, waves | | | | | {b_sec:.1f} | | | {b_arr['cpu']:.1f} "
-                    f"| | | same map: {same} | |"
+                    f"| {b_arr['client_cpu']:.2f} | | | same map: {same} | |"
                 )
     return 0
 

@@ -23,6 +23,7 @@ complete.
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 import os
@@ -49,7 +50,6 @@ from tasks.result import COORD_ATTRS, FIELDS, MASS_FIELDS, field_attrs
 
 #: Closed-form methods stored for every scene (``analysis.boundaries``).
 BOUNDARY_METHODS = ("paper", "exact")
-_BOUNDARY_BLOCK = 256  # r values per call of analysis.boundaries (bounded memory)
 #: Elements per netCDF (HDF5) chunk of a per-point variable: small enough that
 #: the bounded chunk cache below holds every chunk being filled, whatever the
 #: size of the grid (512 KiB of float64).
@@ -90,6 +90,13 @@ def _fill(dtype: str) -> object:
 
 def versions() -> dict[str, str]:
     """Versions of Python and of the packages that made the result."""
+    return dict(_versions())
+
+
+@functools.cache
+def _versions() -> dict[str, str]:
+    """:func:`versions`, looked up once per process (reading the installed packages'
+    metadata costs about 25 ms of CPU at every result written)."""
     from frictionregimes import __version__
 
     out = {"python": platform.python_version()}
@@ -126,18 +133,11 @@ def global_attrs(study: Study, command: str | None = None) -> dict[str, str]:
 
 # --------------------------------------------------------------------------- boundaries
 def _boundaries(scene, r: np.ndarray, method: str) -> tuple[np.ndarray, np.ndarray]:
-    """``analysis.boundaries`` (the one home of the closed forms)."""
-    from analysis import boundaries
+    """``analysis.boundaries`` (the one home of the closed forms), in blocks of r values
+    (bounded memory), remembered: an adaptive plane's hint computed them already."""
+    from analysis.closed_form import boundaries_along
 
-    r = np.asarray(r, dtype=float)
-    cont = np.empty(r.shape)
-    motion = np.empty(r.shape)
-    for i in range(0, r.size, _BOUNDARY_BLOCK):  # blocks: the exact method's work
-        sl = slice(i, i + _BOUNDARY_BLOCK)  # arrays grow with the number of r values
-        c, m = boundaries(scene, r.ravel()[sl], method=method)
-        cont.ravel()[sl] = np.broadcast_to(np.asarray(c, dtype=float), r.ravel()[sl].shape)
-        motion.ravel()[sl] = np.broadcast_to(np.asarray(m, dtype=float), r.ravel()[sl].shape)
-    return cont, motion
+    return boundaries_along(scene, r, method)
 
 
 def _boundary_vars(plan: ScenePlan, axes: dict[str, np.ndarray]) -> dict[str, xr.Variable]:
@@ -240,8 +240,11 @@ def scalar_ratios(spec) -> dict[str, float]:
     return out
 
 
-def scene_dataset(plan: ScenePlan, study: Study) -> tuple[xr.Dataset, dict[str, dict]]:
-    """The Dataset of one scene with lazy fill values, and its netCDF encoding."""
+def scene_dataset(
+    plan: ScenePlan, study: Study, placeholders: bool = False
+) -> tuple[xr.Dataset, dict[str, dict]]:
+    """The Dataset of one scene with lazy fill values, and its netCDF encoding
+    (``placeholders``: the per-point variables as :func:`_placeholder`, for the file)."""
     spec = plan.spec
     axes = plan.axes()
     dims, shape, variables = plan.layout()
@@ -278,6 +281,8 @@ def scene_dataset(plan: ScenePlan, study: Study) -> tuple[xr.Dataset, dict[str, 
         of_contacts = multi and name in contacts.MULTI_DTYPES
         vattrs = contacts.attrs(name, spec.structure.n_contacts) if of_contacts else _attrs(name)
         data_vars[name] = xr.Variable(vdims, fill, vattrs)
+        if placeholders:  # built so at once: assigning them later costs an alignment
+            data_vars[name] = _placeholder(data_vars[name])
         encoding[name] = enc
     bounds = _boundary_vars(plan, axes)
     data_vars.update(bounds)
@@ -403,11 +408,9 @@ def _define_scene(group, plan: ScenePlan, study: Study, gattrs: dict, values: _D
     except ImportError:  # xarray < 2025.9
         from xarray.backends.api import dump_to_store
 
-    ds, enc = scene_dataset(plan, study)
+    ds, enc = scene_dataset(plan, study, placeholders=True)
     if gattrs:
         ds = ds.assign_attrs({**gattrs, **ds.attrs})
-    placeholders = set(plan.layout()[2])
-    ds = ds.assign({n: _placeholder(ds[n]) for n in placeholders})
     dump_to_store(ds, NetCDF4DataStore(group), values, encoding=enc)
     for var in group.variables.values():
         _size_cache(var)
@@ -439,7 +442,7 @@ def _placeholder(var: xr.Variable) -> xr.Variable:
     if var.dtype != bool:
         return var
     data = np.broadcast_to(np.zeros((), dtype=np.int8), var.shape)
-    return var.copy(data=data).assign_attrs(dtype="bool")
+    return xr.Variable(var.dims, data, {**var.attrs, "dtype": "bool"})
 
 
 def _is_placeholder(source) -> bool:

@@ -720,3 +720,30 @@ def test_reference_data(reference_cases_path):
     assert dev["paper"] < 1e-6, dev
     assert dev["motion"] < 1e-6, dev
     assert dev["exact"] < 1e-6, dev
+
+
+@pytest.mark.parametrize("method", ["paper", "exact"])
+@pytest.mark.parametrize(
+    "scene", [Scene("ground", 2), Scene("mass", 3, 2), Scene("base", 4, 3, gamma=2.0)]
+)
+def test_boundaries_along_equal_boundaries_and_remembered(scene, method, monkeypatch):
+    """The block-wise, remembered curves (an adaptive map's hint and its result file)
+    are bit for bit those of one call of ``boundaries`` on the whole axis; a second
+    call computes nothing and hands out arrays of its own."""
+    from analysis import closed_form
+
+    r = np.linspace(0.02, 3.0, 2 * closed_form.BOUNDARY_BLOCK + 37)  # blocks + a remainder
+    whole = boundaries(scene, r, method=method)
+    closed_form._remembered.clear()
+    first = closed_form.boundaries_along(scene, r, method)
+    for got, want in zip(first, whole, strict=True):
+        np.testing.assert_array_equal(got, want)
+    first[0][:] = -1.0  # the caller's copy: the remembered curve stays
+    calls, real = [], closed_form.boundaries
+    monkeypatch.setattr(closed_form, "boundaries", lambda *a, **k: calls.append(a) or real(*a, **k))
+    again = closed_form.boundaries_along(scene, r, method)
+    assert not calls
+    for got, want in zip(again, whole, strict=True):
+        np.testing.assert_array_equal(got, want)
+    other = closed_form.boundaries_along(scene, r[:5], method)  # other r: computed
+    assert calls and other[0].shape == (5,)
