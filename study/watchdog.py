@@ -61,7 +61,14 @@ DASK_LOGGERS = ("distributed", "tornado", "asyncio")
 
 @contextmanager
 def quiet_dask_logs(level: int = logging.CRITICAL) -> Iterator[None]:
-    """Raise the level of Dask's (and its event loop's) loggers to ``level`` for a while."""
+    """Raise the level of Dask's (and its event loop's) loggers to ``level`` for a while.
+
+    ``distributed`` is imported first: its import configures its loggers (level
+    ``info`` for ``distributed``, a handler on stderr), which would undo a level
+    raised before it.
+    """
+    import distributed  # noqa: F401  (every run that quiets the logs connects through it)
+
     previous = {}
     for name in DASK_LOGGERS:
         previous[name] = logging.getLogger(name).level

@@ -201,3 +201,23 @@ def test_local_workers_stopped_mid_run_one_line_exit_1(tmp_path):
     # the timeout and one look, the bounded close of the cluster, a margin (measured: 11 s)
     assert took < 6 + LOOK_INTERVAL + ASK_TIMEOUT + 2 * 30 + 5, took
     assert len(list((tmp_path / "long.nc.work").glob("*/*.npz"))) >= 1
+
+
+def test_dask_logs_stay_quiet_when_distributed_is_imported_inside():
+    """A run quiets Dask's logs before it connects, and connecting imports
+    ``distributed``, whose import sets its own log levels: they must stay quiet (a lost
+    scheduler's "Batched Comm Closed" traceback once reached stderr this way)."""
+    code = (
+        "import logging, sys\n"
+        "from study.watchdog import quiet_dask_logs\n"
+        "assert 'distributed' not in sys.modules\n"
+        "with quiet_dask_logs():\n"
+        "    import distributed.batched\n"
+        "    inside = logging.getLogger('distributed.batched').getEffectiveLevel()\n"
+        "print(inside, logging.getLogger('distributed').getEffectiveLevel())\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=True
+    )
+    inside, after = map(int, out.stdout.split())
+    assert inside == 50 and after < 50, out.stdout  # CRITICAL inside, restored after
