@@ -67,6 +67,18 @@ MARGIN = 1e-2
 
 
 @njit(**LEAF)
+def _keep_sample_peak(acc, col, yi, kind):
+    """Keep the sample ``yi`` next to a maximum (``kind`` > 0) or minimum (``kind`` < 0)
+    of column ``col`` as its best exact value so far (``_TOP`` / ``_BOT``), marked exact."""
+    if kind > 0.0 and yi > acc[_TOP, col]:
+        acc[_TOP, col] = yi
+        acc[_TOP_INEXACT, col] = 0.0
+    if kind < 0.0 and yi < acc[_BOT, col]:
+        acc[_BOT, col] = yi
+        acc[_BOT_INEXACT, col] = 0.0
+
+
+@njit(**LEAF)
 def hermite_peak(h, y0, y1, v0, v1):
     """The interior extremum of the cubic Hermite interpolant on ``[0, h]``.
 
@@ -309,12 +321,7 @@ def orbit_extrema(ctx, work, rec, h, c, dout):
                             ye = _halley_value(motion, prev_t, tau)
                             acc[_LO, col] = min(acc[_LO, col], ye)
                             acc[_HI, col] = max(acc[_HI, col], ye)
-                            if kind > 0.0 and yi > acc[_TOP, col]:
-                                acc[_TOP, col] = yi
-                                acc[_TOP_INEXACT, col] = 0.0
-                            if kind < 0.0 and yi < acc[_BOT, col]:
-                                acc[_BOT, col] = yi
-                                acc[_BOT_INEXACT, col] = 0.0
+                            _keep_sample_peak(acc, col, yi, kind)
                             s = -1.0
                     if s > 0.0:
                         if n_c == cap:
@@ -330,12 +337,7 @@ def orbit_extrema(ctx, work, rec, h, c, dout):
                         cands[n_c, 4] = prev_t
                         cands[n_c, 5] = tau
                         n_c += 1
-                        if kind > 0.0 and yi > acc[_TOP, col]:
-                            acc[_TOP, col] = yi
-                            acc[_TOP_INEXACT, col] = 0.0
-                        if kind < 0.0 and yi < acc[_BOT, col]:
-                            acc[_BOT, col] = yi
-                            acc[_BOT_INEXACT, col] = 0.0
+                        _keep_sample_peak(acc, col, yi, kind)
                 acc[_PREV_Y, col] = y
                 acc[_PREV_V, col] = v
             prev_t = tau
