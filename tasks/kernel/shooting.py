@@ -2,8 +2,10 @@
 
 Slow continuous transients (a Floquet multiplier near 1) are settled by
 solving ``P(X) - X = 0`` for the section state ``X = (x, x')``: :func:`_shoot`
-(difference Jacobian, then Broyden updates) and, for points where that
-fails, :func:`newton_settle` (a fresh Jacobian every step) from one or more
+(the exact Jacobian of the recorded period, :mod:`tasks.kernel.monodromy`, at
+every verified iterate; forward differences and Broyden updates where it cannot
+be used) and, for points where that fails, :func:`newton_settle` (a fresh
+difference Jacobian every step) from one or more
 sections of the period (:func:`settle_at_phases`). A fixed point is accepted
 only if its residual is small and it is not unstable: shooting must find the
 attractor the point's own trajectory reaches, not any periodic orbit.
