@@ -37,7 +37,10 @@ def response(ds: xr.Dataset, mass: int = 1, frame: str = "absolute") -> xr.DataA
         raise ValueError(f"frame: must be one of {tuple(FRAMES)}, got {frame!r}")
     name = FRAMES[frame]
     if name not in ds:
-        raise ValueError(f"{name}: this result has no design quantities (made before they existed)")
+        raise ValueError(
+            f"{name}: this result has no design quantities (not computed: they are off by"
+            " default; ask with design=True, or `design = true` in a study's [settings])"
+        )
     amp = ds[name].sel(mass=mass)
     return amp.where(ds["regime"] >= 0)
 
@@ -80,7 +83,8 @@ def map_dataset(
     r, beta : numpy.ndarray
         1-D axes.
     fidelity, **settings
-        As in :func:`tasks.classify`.
+        As in :func:`tasks.classify`: ``design=True`` for the design quantities
+        (:func:`response`, :func:`optimal_beta`; off by default).
 
     Returns
     -------

@@ -390,7 +390,9 @@ def _scene_section(
     lines += [f"![{p.stem}]({p.name})" for p in images] + [""]
     if ds.attrs.get("design_quantities") == "off" and scene_kind(ds) == "grid":
         lines += [
-            "Response figure skipped: the design quantities were not computed (`design = false`).",
+            "No response figure: the design quantities (amplitudes, contact force, dissipation)"
+            " were not computed, as by default; add `design = true` to the study's `[settings]`"
+            " to compute them.",
             "",
         ]
     if not by_method:

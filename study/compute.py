@@ -52,8 +52,9 @@ def compute_chunk(task: dict) -> dict[str, np.ndarray]:
 
 
 def design_on(settings: dict) -> bool:
-    """Whether the design quantities are computed (the setting ``design``, on by default)."""
-    return bool(settings.get("design", True))
+    """Whether the design quantities are computed: the setting ``design``, off unless
+    the study asks (``design = true``; :class:`tasks.fidelity.Settings`)."""
+    return bool(settings.get("design", False))
 
 
 def point_fields(settings: dict) -> dict[str, str]:

@@ -107,8 +107,9 @@ def classify(
         fewer periods; moving orbits polished to the fixed point, so the other
         fields agree to about 1e-9 whatever the grouping, ``cycles`` excepted);
         only the first start is seeded. ``warm=False`` runs every point from
-        its start alone; ``design=False`` skips the design quantities (then
-        None).
+        its start alone. ``design=True`` also computes the design quantities
+        (off by default: the design pass replays every orbit once more, about
+        17 % of a warm Fig. 4 point; :mod:`tasks.fidelity`).
 
     Returns
     -------
@@ -121,8 +122,9 @@ def classify(
         below the threshold of ``tasks.regimes.SLIP_RTOL``), and over all starts
         ``regime_rest``, ``regimes_reached`` (bit mask) and ``start_dependent``;
         the design quantities ``amplitude``, ``amplitude_relative``,
-        ``contact_force_amplitude`` and ``dissipation`` of the first start's
-        orbit (NaN where it has none), or None with ``design=False``.
+        ``contact_force_amplitude``, ``dissipation`` and ``dissipation_viscous``
+        of the first start's orbit (NaN where it has none) with ``design=True``,
+        None otherwise (the default).
 
     Raises
     ------

@@ -37,10 +37,13 @@ to about 1e-9 (``cycles`` excepted: it counts the periods the search took), and
 the same points in the same order give the same result to the bit (a chunk
 recomputed on resume). ``warm=False`` runs every point from the held start
 without polish: the fields then hold to ``section_rtol`` and do not depend on
-the call at all. ``design`` (True) computes the design quantities (amplitudes,
-contact force amplitude, dissipation) of every orbit; with ``design=False``
-they are not computed and the result's design fields are None
-(:data:`tasks.result.DESIGN_FIELDS`).
+the call at all. ``design`` (False by default) says whether the design
+quantities (amplitudes, contact force amplitude, dissipation,
+:data:`tasks.result.DESIGN_FIELDS`) of every orbit are computed: with
+``design=True`` each converged orbit is replayed and sampled once more (the
+design pass, docs/simulator.md 8; about 17 % of a warm Fig. 4 point), without
+it the result's design fields are None. A map wants the labels; a designer
+asks for the amplitudes.
 
 Starts (the same in every preset): ``initial_condition`` ("held") is the start of
 a single run; ``starts`` (e.g. ``("held", "rest")``) lists the starts to compare,
@@ -139,7 +142,7 @@ class Settings:
     n_random: int = 0
     seed: int = 0
     warm: bool = True
-    design: bool = True
+    design: bool = False
 
     def __post_init__(self) -> None:
         for f in fields(self):

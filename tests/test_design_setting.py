@@ -1,10 +1,13 @@
-"""``design = false`` in a study's ``[settings]``: the design quantities are not
-computed, and absent from the work folder and the result (docs/results.md), in
-every scene kind, through the CLI (in this process: small studies use threads)."""
+"""The ``design`` setting of a study: off by default (no ``design`` key, or
+``design = false``) the design quantities are not computed, and absent from the
+work folder and the result (docs/results.md); ``design = true`` gives them at every
+determined point; in every scene kind, through the CLI (in this process: small
+studies use threads)."""
 
 from __future__ import annotations
 
 import io
+import re
 import os
 import tomllib
 from contextlib import contextmanager, redirect_stderr
@@ -58,9 +61,10 @@ mode = "trace"
 r = {start = 0.3, stop = 2.0, num = 4}
 beta = {start = 0.0, stop = 1.5, num = 61}
 """
-#: The default (no ``design`` key: on) and the same study with the design pass off.
-ON = '[study]\nname = "on"\nfidelity = "fast"\n' + SCENES
-OFF = '[study]\nname = "off"\nfidelity = "fast"\n\n[settings]\ndesign = false\n' + SCENES
+#: The study asking for the design quantities, and the same study with the default
+#: (no ``design`` key: off).
+ON = '[study]\nname = "on"\nfidelity = "fast"\n\n[settings]\ndesign = true\n' + SCENES
+OFF = '[study]\nname = "off"\nfidelity = "fast"\n' + SCENES
 #: Scenes whose results hold design quantities when they are on.
 WITH_DESIGN = ("grid", "pts", "adaptive")
 LABELS = ("regime", "stops_per_cycle", "cycles")
@@ -104,8 +108,8 @@ def test_design_off_leaves_design_variables_out_and_labels_equal(runs):
     assert set(on) == set(off) == {*WITH_DESIGN, "traced"}
     for name in WITH_DESIGN:
         a, b = on[name], off[name]
-        assert a.attrs["design_quantities"] == "on", name  # the default
-        assert b.attrs["design_quantities"] == "off", name
+        assert a.attrs["design_quantities"] == "on", name  # asked for
+        assert b.attrs["design_quantities"] == "off", name  # the default
         assert set(DESIGN_FIELDS) <= set(a.data_vars), name
         assert not set(DESIGN_FIELDS) & set(b.data_vars), name
         assert "mass" in a.coords and "mass" not in b.coords, name
@@ -124,6 +128,37 @@ def test_design_off_leaves_design_variables_out_and_labels_equal(runs):
         np.testing.assert_array_equal(off["traced"][var].values, on["traced"][var].values)
 
 
+def test_design_true_gives_them_at_every_determined_point(runs):
+    """A result that promised the design quantities holds them: finite wherever a
+    point was simulated to a steady state, NaN only where it has none."""
+    on = scenes(runs / "on.nc")
+    for name in WITH_DESIGN:
+        ds = on[name]
+        done = ds["regime"] >= 0
+        if "simulated" in ds:  # an adaptive map: the simulated points
+            done = done & ds["simulated"]
+        assert int(done.sum()) >= 3, name
+        for var in DESIGN_FIELDS:
+            values = ds[var].where(done)
+            assert bool(np.isfinite(values).sum() == done.sum() * ds[var].sizes.get("mass", 1)), (
+                name,
+                var,
+            )
+        moving = done & (ds["regime"] > 0) & (ds["beta"] > 0)
+        assert float(ds["dissipation"].where(moving).min()) > 0, name  # friction that slides
+        assert float(ds["amplitude"].where(done).max()) > 0, name
+
+
+def test_design_default_and_false_are_the_same_settings():
+    default = Study.from_dict(tomllib.loads(OFF)).settings
+    explicit = Study.from_dict(
+        tomllib.loads(OFF.replace("[[scene]]", "[settings]\ndesign = false\n\n[[scene]]", 1))
+    ).settings
+    asked = Study.from_dict(tomllib.loads(ON)).settings
+    assert default.design is False and explicit == default
+    assert asked.design is True
+
+
 def test_report_on_a_result_without_design_quantities(runs):
     out = runs / "report_off"
     code, err = study(runs, "report", "off.nc", "-o", str(out))
@@ -131,8 +166,18 @@ def test_report_on_a_result_without_design_quantities(runs):
     text = (out / "report.md").read_text(encoding="utf-8")
     assert not list(out.glob("*_response.png"))  # needs the amplitudes
     assert list(out.glob("grid_map.png")) and list(out.glob("adaptive_map.png"))
-    reason = "Response figure skipped: the design quantities were not computed"
+    reason = "No response figure: the design quantities (amplitudes, contact force,"
     assert text.count(reason) == 2  # the grid and the adaptive map
+    assert text.count("add `design = true` to the study's `[settings]`") == 2
+    assert not re.search(r"\bnan\b", text, re.I)  # nothing printed as if it were data
+
+
+def test_report_on_a_result_with_design_quantities(runs):
+    out = runs / "report_on"
+    code, err = study(runs, "report", "on.nc", "-o", str(out))
+    assert code == 0, err
+    assert list(out.glob("grid_*response.png")), sorted(p.name for p in out.iterdir())
+    assert "No response figure" not in (out / "report.md").read_text(encoding="utf-8")
 
 
 def test_resume_of_a_run_with_design_off(runs, tmp_path):
@@ -156,6 +201,6 @@ def test_resume_of_a_run_with_design_off(runs, tmp_path):
 
 
 def test_design_must_be_a_bool():
-    bad = OFF.replace("design = false", 'design = "no"')
+    bad = ON.replace("design = true", 'design = "no"')
     with pytest.raises(StudyError, match=r"settings\.design.*true or false"):
         Study.from_dict(tomllib.loads(bad)).settings  # noqa: B018

@@ -150,6 +150,9 @@ TINY = """
 [study]
 name = "tiny"
 
+[settings]
+design = true  # the variable tables list the design quantities too
+
 [[scene]]
 name = "grid"
 contact = "ground"

@@ -24,7 +24,7 @@ BETA = np.linspace(0.0, 1.5, 61)
 
 def scene_map(scene: Scene):
     """The map of one panel with the closed-form boundaries, as a stored scene."""
-    return map_dataset(scene, R, BETA)
+    return map_dataset(scene, R, BETA, design=True)  # the response figure needs them
 
 
 def main() -> None:
