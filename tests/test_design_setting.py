@@ -7,8 +7,8 @@ studies use threads)."""
 from __future__ import annotations
 
 import io
-import re
 import os
+import re
 import tomllib
 from contextlib import contextmanager, redirect_stderr
 from pathlib import Path
