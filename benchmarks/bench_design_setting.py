@@ -1,10 +1,11 @@
-"""What ``design = false`` in a study's ``[settings]`` saves: ``study run`` in this process.
+"""What ``design = false`` (the default) saves against ``design = true``: ``study run`` here.
 
 ``python benchmarks/bench_design_setting.py [--quick] [--repeats N]``: the Fig. 4
 example (``examples/fig04.toml``: four 2DOF panels of 250 x 100 points; ``--quick``:
-125 x 50) run through ``study.cli.main`` with the design pass on (the default) and
-off, alternately, ``N`` times each; small enough to compute in this process
-(threads), so the CPU time of this process (``time.process_time``) is the whole
+125 x 50) run through ``study.cli.main`` with the design pass on (``design = true``)
+and off (the default, written out), alternately, ``N`` times each; small enough to
+compute in this process (threads), so the CPU time of this process
+(``time.process_time``) is the whole
 study's. Prints the CPU time of every run, the best of each setting and their
 ratio, the result files' sizes, and checks that the labels are equal.
 """

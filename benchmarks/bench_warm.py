@@ -1,29 +1,43 @@
-"""Warm starts and the optional design pass: per-point cost on whole panels, and the paper's method.
+"""Every paper figure example's dense panels: defaults, design pass, cold starts, the paper.
 
-Run from the repository root::
+Run from the repository root (at low priority on a shared machine)::
 
-    .venv/bin/python benchmarks/bench_warm.py            # 250 x 100 panels, ~4 min on 2 cores
-    .venv/bin/python benchmarks/bench_warm.py --quick    # 100 x 40 panels, ~1 min
-    .venv/bin/python benchmarks/bench_warm.py --quick --code ../main  # another checkout
+    nice -n 10 .venv/bin/python benchmarks/bench_warm.py          # 23 panels of 250 x 100, ~10 min
+    .venv/bin/python benchmarks/bench_warm.py --quick             # 100 x 40 panels, ~2 min
+    .venv/bin/python benchmarks/bench_warm.py --only fig04 fig10b # some figure files only
+    .venv/bin/python benchmarks/bench_warm.py --detail            # + per regime class, two panels
+    .venv/bin/python benchmarks/bench_warm.py --quick --code ../main  # another checkout's tasks/
 
-In one process, on a 250 x 100 (r, beta) panel of Fig. 4 (2DOF, ground contact
-on m_1, gamma = 1, kappa = 0.5) and of Fig. 10b (5DOF, ground contact on m_2):
-``tasks.classify`` (balanced; each configuration run twice, in order and in
-reverse order, the lesser CPU time kept) with warm starts (the default, ``warm=True``:
-seeds from solved neighbours, moving orbits polished) and with every point
-from the held start (``warm=False``), each with and without the design pass
-(``design=False``), one call per panel in the study's order (r outer, beta
-inner), compiled beforehand; then the points of each regime class (of the cold
-run) alone, with and without the design pass, for the cost and cycles per
-class.
-The paper's method (``tasks.baseline.paper_method``: RK45 + events, 100
-cycles from rest, scipy) runs on a seeded sample of the same points; the
-ratio is its mean time per point over each configuration's.
-Labels: the warm and cold panels must agree point for point (regime and
-stops); the paper's labels are compared on the sample (it integrates a fixed
-100 cycles, so slow transients can differ). Times are CPU times of this
-process (``time.process_time``; both sides single-threaded), so that the other
-processes of a shared machine inflate neither. Prints Markdown tables.
+Panels: EVERY scene of ``examples/fig03.toml`` ... ``fig17.toml`` (23 panels: one
+each for Figs. 3, 10a and 10b, four (gamma, kappa) pairs for Figs. 4, 5, 14, 15
+and 17), read from the files themselves (contact, dof, contact mass, gamma, kappa,
+the r and beta ranges) at 250 x 100 points, the examples' own resolution. All
+panels, not one per figure: a panel costs a few CPU seconds per configuration, and
+the four panels of one figure differ in cost by up to 1.5 times.
+
+Per panel, in one process, one ``tasks.classify`` call per configuration (balanced,
+the points in a study's order: r outer, beta inner), compiled beforehand:
+
+- **default**: warm starts, no design pass (``classify``'s defaults; timed twice,
+  before and after the others, the lesser CPU time kept);
+- **design**: warm starts and ``design=True`` (the design quantities);
+- **cold**: ``warm=False``, every point from the held start, no design pass: the
+  labels of the search without seeds, the reference for "warm = cold".
+
+The paper's method (``tasks.baseline.paper_method``: scipy RK45 + events, 100
+cycles from rest) runs on a seeded sample of each panel's points (``--paper-points``,
+default 12 per panel, 276 in all; its cost per point varies 0.1-1 s with the
+point, so a panel's own ratio is indicative and the ratio over all panels, mean
+time against mean time, is the figure to quote). Labels: regime and stops of the
+default equal the cold run's point for point, and the design run's (the design pass
+changes no label); the paper's labels are compared on its sample (100 cycles from
+rest do not reach the steady state of slow points). Times are CPU times of this
+process (``time.process_time``; both sides single-threaded), so that other
+processes on a shared machine inflate neither. Prints Markdown tables.
+
+``--detail`` adds the earlier per-class table (cycles and cost of each regime
+class, cold) and the check that another grouping of the points (beta outer)
+gives every field to the polish, on Fig. 4 (1, 0.5) and Fig. 10b.
 """
 
 from __future__ import annotations
@@ -31,6 +45,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -45,23 +60,36 @@ from study.bench import machine  # noqa: E402
 from tasks import Scene, classify  # noqa: E402
 from tasks.baseline import paper_method  # noqa: E402
 
-PANELS = {
-    "Fig. 4 (2DOF, m_1, gamma 1, kappa 0.5)": (Scene("ground", 2, 1, gamma=1.0, kappa=0.5), 1.5),
-    "Fig. 10b (5DOF, m_2)": (Scene("ground", 5, 2), 2.0),
-}
+FIGURES = ("fig03", "fig04", "fig05", "fig10a", "fig10b", "fig14", "fig15", "fig17")
 CONFIGS = {
-    "warm + design (default)": {"warm": True},
-    "warm, no design": {"warm": True, "design": False},
-    "cold + design": {"warm": False},
-    "cold, no design": {"warm": False, "design": False},
+    "default": {"warm": True, "design": False},
+    "design": {"warm": True, "design": True},
+    "cold": {"warm": False, "design": False},
 }
 SEED = 19
 CLASSES = {0: "no motion", 1: "stick-slip", 2: "continuous"}
-
-
+#: The two panels of ``--detail`` (the ones measured before every panel was).
+DETAIL = ("fig04:gamma1_kappa0.5", "fig10b:5dof_ground_m2")
 #: Fields compared between two groupings (relative to their largest value on the panel).
 CONTINUOUS = ("slip_amplitude", "stick_fraction", "amplitude", "contact_force_amplitude")
 CONTINUOUS += ("dissipation",)
+
+
+def panels(figures: tuple[str, ...], size: tuple[int, int] | None) -> list[tuple]:
+    """(figure, scene name, Scene, r axis, beta axis) of every scene of the figure
+    files, at ``size`` (n_r, n_beta) or the file's own resolution."""
+    out = []
+    for fig in figures:
+        data = tomllib.loads((REPO / "examples" / f"{fig}.toml").read_text(encoding="utf-8"))
+        for s in data["scene"]:
+            ratios = {k: s[k] for k in ("gamma", "kappa") if k in s}
+            scene = Scene(s["contact"], s["dof"], s.get("contact_mass", 1), **ratios)
+            axes = []
+            for name, n in zip(("r", "beta"), size or (None, None), strict=True):
+                ax = s[name]
+                axes.append(np.linspace(ax["start"], ax["stop"], n or ax["num"]))
+            out.append((fig, s["name"], scene, *axes))
+    return out
 
 
 def _rel(a: np.ndarray, b: np.ndarray) -> float:
@@ -77,109 +105,154 @@ def table(header: list[str], rows: list[list[object]]) -> str:
     return "\n".join(lines + ["| " + " | ".join(str(c) for c in row) + " |" for row in rows])
 
 
+def cpu_per_point(scene: Scene, r: np.ndarray, beta: np.ndarray, **kw):
+    """The result of one call and its CPU seconds per point."""
+    t0 = time.process_time()
+    res = classify(scene, r, beta, **kw)
+    return res, (time.process_time() - t0) / r.size
+
+
+def measure(scene: Scene, r: np.ndarray, beta: np.ndarray, n_paper: int, seed: int) -> dict:
+    """Every configuration on one panel, the paper's method on its sample."""
+    results, cost = {}, {}
+    for name in [*CONFIGS, "default"]:  # the default before and after the others
+        res, cpu = cpu_per_point(scene, r, beta, **CONFIGS[name])
+        results[name] = res
+        cost[name] = min(cost.get(name, np.inf), cpu)
+    pick = np.random.default_rng(seed).choice(r.size, n_paper, replace=False)
+    t0 = time.process_time()
+    paper = np.array([paper_method(scene, r.flat[i], beta.flat[i])[0] for i in pick])
+    return {
+        "results": results,
+        "cost": cost,
+        "paper_cpu": time.process_time() - t0,
+        "paper_agree": int(np.sum(paper == results["cold"].regime.flat[pick])),
+    }
+
+
+def detail(scene: Scene, r: np.ndarray, beta: np.ndarray, title: str) -> tuple[list, list]:
+    """Per regime class (cold, each class's points in one call) and another grouping."""
+    cold = classify(scene, r, beta, warm=False)
+    class_rows = []
+    for code, klass in CLASSES.items():
+        m = cold.regime == code
+        if not m.any():
+            continue
+        cost = [cpu_per_point(scene, r[m], beta[m], warm=False, design=d)[1] for d in (True, False)]
+        cycles = cold.cycles[m].mean()
+        class_rows.append(
+            [title, klass, int(m.sum()), f"{cycles:.1f}"]
+            + [f"{c * 1e6:.0f}" for c in cost]
+            + [f"{cost[0] * 1e6 / max(cycles, 1.0):.1f}"]
+        )
+    warm = classify(scene, r, beta, design=True)
+    other = classify(scene, r.T, beta.T, design=True)  # beta outer, r inner: other seeds
+    spread = max(_rel(getattr(warm, f), np.swapaxes(getattr(other, f), 0, 1)) for f in CONTINUOUS)
+    moving = cold.regime > 0
+    grouping = [
+        title,
+        f"{cold.cycles[moving].mean():.1f} -> {warm.cycles[moving].mean():.1f}",
+        f"{spread:.1e}",
+        str(int(np.sum(other.regime.T != warm.regime))),
+    ]
+    return class_rows, [grouping]
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="100 x 40 panels, 20 paper points")
+    parser.add_argument("--quick", action="store_true", help="100 x 40 panels, 4 paper points")
     parser.add_argument("--paper-points", type=int, default=None, help="paper sample per panel")
+    parser.add_argument("--only", nargs="+", choices=FIGURES, help="these figure files only")
+    parser.add_argument("--detail", action="store_true", help="per class, two panels")
     parser.add_argument("--code", default=None, help="import tasks from this checkout instead")
     args = parser.parse_args()
-    n_r, n_beta = (100, 40) if args.quick else (250, 100)
-    n_paper = args.paper_points or (20 if args.quick else 40)
+    size = (100, 40) if args.quick else None
+    n_paper = args.paper_points or (4 if args.quick else 12)
     print("machine: " + "; ".join(f"{k} {v}" for k, v in machine().items()))
-    classify(Scene("ground", 2), [0.5, 1.5], [0.1, 0.6], design=False)  # compile / load
-    classify(Scene("ground", 2), [0.5, 1.5], [0.1, 0.6])
-    timing_rows, label_rows, class_rows = [], [], []
-    for title, (scene, beta_max) in PANELS.items():
-        r, beta = np.meshgrid(
-            np.linspace(0.02, 2.5, n_r), np.linspace(0.0, beta_max, n_beta), indexing="ij"
+    classify(Scene("ground", 2), [0.5, 1.5], [0.1, 0.6])  # compile / load
+    classify(Scene("ground", 2), [0.5, 1.5], [0.1, 0.6], design=True)
+    rows, totals = [], {"points": 0, "paper_cpu": 0.0, "paper_n": 0, "agree": 0}
+    totals |= {f"cpu_{n}": 0.0 for n in CONFIGS}
+    start = time.perf_counter()
+    todo = panels(tuple(args.only or FIGURES), size)
+    for k, (fig, name, scene, r_axis, beta_axis) in enumerate(todo):
+        r, beta = np.meshgrid(r_axis, beta_axis, indexing="ij")
+        m = measure(scene, r, beta, n_paper, SEED + k)
+        res, cost = m["results"], m["cost"]
+        paper_s = m["paper_cpu"] / n_paper
+        default, cold, design = res["default"], res["cold"], res["design"]
+        same = np.sum(
+            (default.regime == cold.regime) & (default.stops_per_cycle == cold.stops_per_cycle)
         )
-        results, per_point = {}, {}
-        # each configuration twice, in order and in reverse order: the lesser CPU time
-        # (a loaded machine inflates CPU times too, unevenly over a run)
-        names = list(CONFIGS)
-        for name in names + names[::-1]:
-            t0 = time.process_time()
-            results[name] = classify(scene, r, beta, **CONFIGS[name])
-            cpu = (time.process_time() - t0) / r.size
-            per_point[name] = min(per_point.get(name, np.inf), cpu)
-        cold, warm = results["cold + design"], results["warm + design (default)"]
-        pick = np.random.default_rng(SEED).choice(r.size, n_paper, replace=False)
-        t0 = time.process_time()
-        paper = np.array([paper_method(scene, r.flat[i], beta.flat[i])[0] for i in pick])
-        paper_s = (time.process_time() - t0) / n_paper
-        moving = cold.regime > 0
-        # another grouping of the same points: beta outer, r inner (warm, with design)
-        other = classify(scene, r.T, beta.T, warm=True)
-        spread = max(
-            _rel(getattr(warm, f), np.swapaxes(getattr(other, f), 0, 1)) for f in CONTINUOUS
+        same_design = np.sum(
+            (default.regime == design.regime) & (default.stops_per_cycle == design.stops_per_cycle)
         )
-        for code, klass in CLASSES.items():  # each regime class alone, from the held start
-            m = cold.regime == code
-            if not m.any():
-                continue
-            cost = []
-            for kw in ({"warm": False}, {"warm": False, "design": False}):
-                t0 = time.process_time()
-                classify(scene, r[m], beta[m], **kw)
-                cost.append((time.process_time() - t0) / m.sum())
-            class_rows.append(
-                [title, klass, int(m.sum()), f"{cold.cycles[m].mean():.1f}"]
-                + [f"{c * 1e6:.0f}" for c in cost]
-                + [f"{cost[0] * 1e6 / max(cold.cycles[m].mean(), 1.0):.1f}"]
+        rows.append(
+            [f"{fig}:{name}", f"{r.shape[0]} x {r.shape[1]}"]
+            + [f"{cost[n] * 1e3:.3f}" for n in CONFIGS]
+            + [f"{paper_s * 1e3:.0f}"]
+            + [f"{paper_s / cost[n]:.0f}x" for n in CONFIGS]
+            + [f"{cost['design'] / cost['default'] - 1:.0%}"]
+            + [f"{same} / {r.size}", f"{same_design} / {r.size}", f"{m['paper_agree']} / {n_paper}"]
+        )
+        totals["points"] += r.size
+        totals["paper_cpu"] += m["paper_cpu"]
+        totals["paper_n"] += n_paper
+        totals["agree"] += m["paper_agree"]
+        for n in CONFIGS:
+            totals[f"cpu_{n}"] += cost[n] * r.size
+        totals["same"] = totals.get("same", 0) + int(same)
+        totals["same_design"] = totals.get("same_design", 0) + int(same_design)
+        print(f"[{time.perf_counter() - start:.0f} s] {fig}:{name} done", file=sys.stderr)
+    paper_s = totals["paper_cpu"] / totals["paper_n"]
+    mean = {n: totals[f"cpu_{n}"] / totals["points"] for n in CONFIGS}
+    rows.append(
+        [f"all {len(todo)} panels", f"{totals['points']:,}"]
+        + [f"{mean[n] * 1e3:.3f}" for n in CONFIGS]
+        + [f"{paper_s * 1e3:.0f}"]
+        + [f"{paper_s / mean[n]:.0f}x" for n in CONFIGS]
+        + [f"{mean['design'] / mean['default'] - 1:.0%}"]
+        + [
+            f"{totals['same']} / {totals['points']}",
+            f"{totals['same_design']} / {totals['points']}",
+        ]
+        + [f"{totals['agree']} / {totals['paper_n']}"]
+    )
+    print("\nCPU ms per point (one classify call per panel, balanced); paper's method on a sample")
+    print(
+        table(
+            ["panel", "points", "default (warm, no design) ms", "design=True ms", "cold ms"]
+            + ["paper ms", "paper / default", "paper / design", "paper / cold"]
+            + ["design pass adds", "labels default = cold", "labels default = design"]
+            + ["paper = cold (sample)"],
+            rows,
+        )
+    )
+    print(f"\n(wall {time.perf_counter() - start:.0f} s)")
+    if args.detail:
+        class_rows, group_rows = [], []
+        for fig, name, scene, r_axis, beta_axis in panels(("fig04", "fig10b"), size):
+            if f"{fig}:{name}" in DETAIL:
+                r, beta = np.meshgrid(r_axis, beta_axis, indexing="ij")
+                c, g = detail(scene, r, beta, f"{fig}:{name}")
+                class_rows += c
+                group_rows += g
+        print("\nper regime class (cold, each class's points in one call): cycles, CPU us/point")
+        print(
+            table(
+                ["panel", "class", "points", "cycles", "us/pt (design)", "us/pt (no design)"]
+                + ["us/cycle (design)"],
+                class_rows,
             )
-        timing_rows.append(
-            [title, f"{n_r} x {n_beta}"]
-            + [f"{per_point[n] * 1e3:.3f}" for n in CONFIGS]
-            + [f"{paper_s:.3f} ({n_paper})"]
-            + [f"{paper_s / per_point[n]:.0f}x" for n in CONFIGS]
         )
-        label_rows.append(
-            [
-                title,
-                f"{np.sum(warm.regime == cold.regime)} / {r.size}",
-                f"{np.sum(warm.stops_per_cycle == cold.stops_per_cycle)} / {r.size}",
-                f"{np.nanmax(np.abs(warm.stick_fraction - cold.stick_fraction)):.1e}",
-                f"{cold.cycles[moving].mean():.1f} -> {warm.cycles[moving].mean():.1f}",
-                f"{spread:.1e}",
-                str(int(np.sum(other.regime.T != warm.regime))),
-                f"{np.sum(paper == cold.regime.flat[pick])} / {n_paper}",
-                f"{np.sum(paper == warm.regime.flat[pick])} / {n_paper}",
-            ]
+        print("\nwarm starts: cycles per moving point, and another grouping (beta outer)")
+        print(
+            table(
+                ["panel", "cycles per moving point cold -> warm", "max rel field diff"]
+                + ["labels differing between the two orders"],
+                group_rows,
+            )
         )
-    names = list(CONFIGS)
-    print("\nCPU ms per point (one classify call per panel, balanced); speed-up over the paper")
-    print(
-        table(
-            ["panel", "points", *[f"{n} ms" for n in names], "paper CPU s/pt (n)"]
-            + [f"paper / {n}" for n in names],
-            timing_rows,
-        )
-    )
-    print("\nper regime class (cold, each class's points in one call): cycles and CPU us per point")
-    print(
-        table(
-            ["panel", "class", "points", "cycles", "us/pt (design)", "us/pt (no design)"]
-            + ["us/cycle (design)"],
-            class_rows,
-        )
-    )
-    print("\nlabels: warm vs cold on the whole panel, and the paper's method on its sample")
-    print(
-        table(
-            [
-                "panel",
-                "regime warm = cold",
-                "stops warm = cold",
-                "max |stick fraction diff|",
-                "cycles per moving point cold -> warm",
-                "max rel field diff, warm in r order vs beta order",
-                "labels differing between the two orders",
-                "paper = cold",
-                "paper = warm",
-            ],
-            label_rows,
-        )
-    )
 
 
 if __name__ == "__main__":

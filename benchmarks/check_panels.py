@@ -78,6 +78,7 @@ def panels(size: tuple[int, int] | None):
 def save(
     output: Path, size: tuple[int, int] | None, only: str | None, start: str, settings: dict
 ) -> None:
+    settings = {"design": True, **settings}  # the design fields compared too (off by default)
     classify(Scene("ground", dof=2), [0.5, 1.5], [0.1, 0.6], **settings)  # compile / load
     arrays = {}
     for name, scene, r, beta in panels(size):

@@ -8,6 +8,8 @@
 - amplitudes of every mass against a dense sampling of that trajectory;
 - the force a contact stuck for ever transmits: the motion bound of the held
   system (docs/theory.md 4.2), the amplitude of the load on the held contact.
+
+They are computed only when asked for (``design=True``; None by default).
 """
 
 from __future__ import annotations
@@ -32,7 +34,7 @@ def test_sdof_amplitude_is_den_hartogs(contact):
     r = np.array([0.3, 0.55, 0.8, 0.95, 1.2, 1.7, 2.5, 3.5])
     bc, _ = boundaries(scene, r, method="exact")
     beta = 0.6 * bc
-    res = classify(scene, r, beta)
+    res = classify(scene, r, beta, design=True)
     assert (res.regime == regimes.CONTINUOUS).all(), res.regime
     load = r**2 if contact == "base" else np.ones_like(r)  # base: z = x - y is loaded by r^2
     expected = den_hartog(r, beta, load)
@@ -63,7 +65,7 @@ def _work_of_excitation(scene: Scene, r: float, traj, period: int) -> float:
 
 @pytest.mark.parametrize(("scene", "r", "beta"), POINTS)
 def test_dissipation_balances_the_work_of_the_excitation(scene, r, beta):
-    res = classify(scene, np.array([r]), np.array([beta]))
+    res = classify(scene, np.array([r]), np.array([beta]), design=True)
     assert res.regime[0] in (regimes.CONTINUOUS, regimes.STICK_SLIP)
     traj = trajectory(scene, r, beta)
     work = _work_of_excitation(scene, r, traj, int(res.period[0]))
@@ -73,7 +75,7 @@ def test_dissipation_balances_the_work_of_the_excitation(scene, r, beta):
 
 @pytest.mark.parametrize(("scene", "r", "beta"), POINTS)
 def test_amplitudes_match_dense_sampling(scene, r, beta):
-    res = classify(scene, np.array([r]), np.array([beta]))
+    res = classify(scene, np.array([r]), np.array([beta]), design=True)
     traj = trajectory(scene, r, beta)
     tau = np.linspace(traj.tau[0], traj.tau[-1], 200001)
     x, _ = traj.sample(tau)
@@ -92,14 +94,14 @@ def test_amplitudes_match_dense_sampling(scene, r, beta):
 )
 def test_force_of_a_contact_stuck_for_ever_is_the_motion_bound(scene, r):
     _, bm = boundaries(scene, np.array([r]), method="paper")
-    res = classify(scene, np.array([r]), 1.5 * bm)
+    res = classify(scene, np.array([r]), 1.5 * bm, design=True)
     assert res.regime[0] == regimes.NO_MOTION
     np.testing.assert_allclose(res.contact_force_amplitude[0], bm[0], rtol=1e-6)
     assert res.dissipation[0] == 0.0
 
 
 def test_undetermined_points_have_no_design_quantities():
-    res = classify(Scene("ground", 1), np.array([1.0]), np.array([0.5]))  # Den Hartog: unbounded
+    res = classify(Scene("ground", 1), np.array([1.0]), np.array([0.5]), design=True)  # unbounded
     assert res.regime[0] == regimes.UNBOUNDED
     assert np.isnan(res.amplitude).all() and np.isnan(res.dissipation).all()
 

@@ -51,7 +51,7 @@ def _extreme(traj, column, sign: float, tau: np.ndarray, y: np.ndarray) -> float
 
 @pytest.mark.parametrize(("scene", "r", "beta"), POINTS)
 def test_amplitudes_equal_the_exact_trajectorys(scene, r, beta):
-    res = classify(scene, np.array([r]), np.array([beta]))
+    res = classify(scene, np.array([r]), np.array([beta]), design=True)
     assert res.regime[0] in (regimes.CONTINUOUS, regimes.STICK_SLIP)
     traj = trajectory(scene, r, beta)
     period = int(res.period[0])

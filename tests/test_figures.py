@@ -16,7 +16,7 @@ from tasks import Scene
 
 def scene_map(scene: Scene, r: np.ndarray, beta: np.ndarray) -> xr.Dataset:
     """A labelled in-memory map with the closed-form bounds and the scene attributes."""
-    return map_dataset(scene, r, beta)
+    return map_dataset(scene, r, beta, design=True)  # the response figures need them
 
 
 @pytest.fixture(scope="module")

@@ -16,7 +16,7 @@ import xarray as xr
 
 from study import Study, run_study
 from tasks import Scene, classify
-from tasks.result import FIELDS, FLAGS, MASS_FIELDS
+from tasks.result import DESIGN_FIELDS, FIELDS, FLAGS, MASS_FIELDS
 
 matplotlib.use("Agg")
 
@@ -24,9 +24,12 @@ EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 CODED = ("regime", "initial_condition", "period", "converged")
 
 
-def reduced(name: str, n_r: int = 14, n_beta: int = 9) -> Study:
-    """An example study with coarser r and beta axes (same ranges)."""
+def reduced(name: str, n_r: int = 14, n_beta: int = 9, design: bool = False) -> Study:
+    """An example study with coarser r and beta axes (same ranges); ``design``: with
+    ``[settings] design = true`` added (the paper's examples are labels only)."""
     data = tomllib.loads((EXAMPLES / f"{name}.toml").read_text())
+    if design:
+        data.setdefault("settings", {})["design"] = True
     for scene in data["scene"]:
         scene["r"] = {**scene["r"], "num": n_r}
         scene["beta"] = {**scene["beta"], "num": n_beta}
@@ -62,7 +65,8 @@ def test_fig04_panels_combine_into_one_labelled_array(client):
     for ds in panels:
         assert_codes(ds)
         assert ds["regime"].dims == ("beta", "r")
-        assert ds["amplitude"].dims == ("mass", "beta", "r") and ds.sizes["mass"] == 2
+        assert ds.attrs["design_quantities"] == "off"  # labels only, as the example asks
+        assert not set(DESIGN_FIELDS) & set(ds.data_vars) and "mass" not in ds.dims
         assert ds["gamma"].dims == () and ds["kappa"].dims == ()
         assert (ds.attrs["contact"], ds.attrs["dof"], ds.attrs["contact_mass"]) == ("ground", 2, 1)
     # the four panels as one array, indexed by (gamma, kappa)
@@ -87,7 +91,9 @@ def test_fig03_file_opens_as_the_in_memory_result(client, tmp_path):
     assert_codes(ds)
     assert "gamma" not in ds.coords  # SDOF: no ratios
     assert "regime_rest" not in ds  # rest is no start of fig03: nothing but -127 to write
-    for name in (n for n in FIELDS if n != "regime_rest"):
+    assert ds.attrs["design_quantities"] == memory.attrs["design_quantities"] == "off"
+    assert not set(DESIGN_FIELDS) & set(ds.data_vars)  # absent, not NaN-filled
+    for name in (n for n in FIELDS if n not in ("regime_rest", *DESIGN_FIELDS)):
         assert ds[name].dims == memory[name].dims
         np.testing.assert_array_equal(ds[name].values, memory[name].values, err_msg=name)
     artist = ds["regime"].plot()  # r along x
@@ -97,7 +103,7 @@ def test_fig03_file_opens_as_the_in_memory_result(client, tmp_path):
 
 def test_fig17_multi_scene_root_says_what_it_holds(client, tmp_path):
     path = tmp_path / "fig17.nc"
-    run_study(reduced("fig17", 8, 5), path, client=client, progress=False)
+    run_study(reduced("fig17", 8, 5, design=True), path, client=client, progress=False)
     root = xr.open_dataset(path)
     assert not root.data_vars
     names = root.attrs["groups"].split()
@@ -113,13 +119,13 @@ def test_fig17_multi_scene_root_says_what_it_holds(client, tmp_path):
 def test_classify_result_to_dataset():
     scene = Scene("base", 2, 2, gamma=0.5, kappa=2.0)
     r, beta = np.linspace(0.2, 2.0, 5), np.linspace(0.0, 1.0, 3)
-    res = classify(scene, *np.meshgrid(r, beta, indexing="ij"))
+    res = classify(scene, *np.meshgrid(r, beta, indexing="ij"), design=True)
     ds = res.to_dataset(r, beta, scene)
     assert ds["regime"].dims == ("beta", "r") and ds["amplitude"].dims == ("mass", "beta", "r")
     assert float(ds["gamma"]) == 0.5 and float(ds["kappa"]) == 2.0
     assert_codes(ds)
     point = ds.sel(r=r[3], beta=beta[1])
-    single = classify(scene, r[3], beta[1])
+    single = classify(scene, r[3], beta[1], design=True)
     assert int(point["regime"]) == int(single.regime)
     np.testing.assert_array_equal(point["amplitude"].values, single.amplitude)
     with pytest.raises(ValueError, match="r, beta"):

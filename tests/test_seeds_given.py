@@ -62,7 +62,7 @@ def test_given_orbits_seed_the_same_labels_and_fields():
     coarse = np.zeros((41, 21), dtype=bool)
     coarse[::2, ::2] = True
     coarse = coarse.ravel()
-    solved, final = classify_given(scene, r[coarse], beta[coarse], None)
+    solved, final = classify_given(scene, r[coarse], beta[coarse], None, design=True)
     moving = solved.regime > regimes.NO_MOTION
     orbit = np.isfinite(final).all(axis=1)
     # an orbit is kept exactly where the point converged to a moving period-1 motion
@@ -71,8 +71,8 @@ def test_given_orbits_seed_the_same_labels_and_fields():
     given = (r[coarse][orbit], beta[coarse][orbit], final[orbit])
     rest = np.flatnonzero(~coarse)
     lists = [rest[k::12] for k in range(12)]  # scattered lists: few seeds within a list
-    seeded = [classify_given(scene, r[p], beta[p], given)[0] for p in lists]
-    alone = [classify(scene, r[p], beta[p]) for p in lists]
+    seeded = [classify_given(scene, r[p], beta[p], given, design=True)[0] for p in lists]
+    alone = [classify(scene, r[p], beta[p], design=True) for p in lists]
     for name in FIELDS:
         a = np.concatenate([np.asarray(getattr(x, name)) for x in seeded])
         b = np.concatenate([np.asarray(getattr(x, name)) for x in alone])
@@ -101,6 +101,9 @@ STUDY = """
 [study]
 name = "seeded"
 fidelity = "fast"
+
+[settings]
+design = true  # dissipation compared too
 
 [[scene]]
 name = "plane"

@@ -63,6 +63,7 @@ chunk_points = 20
 
 [settings]
 max_cycles = 120
+design = true  # the design quantities too: compared with classify's below
 
 [[scene]]
 name = "sweep"
@@ -122,7 +123,8 @@ points = [
 ]
 """
 
-#: Long enough to interrupt (240 chunks of 24 points, ~5-15 s on 2 workers).
+#: Long enough to interrupt (480 chunks of 24 points, ~5-15 s on 2 workers; labels
+#: only, the default: 240 chunks could finish before the signal arrived).
 LONG = """
 [study]
 name = "long"
@@ -135,9 +137,9 @@ contact = "ground"
 dof = 2
 gamma = {values = [0.5, 2.0]}
 r = {start = 0.05, stop = 2.5, num = 60}
-beta = {start = 0.0, stop = 1.2, num = 48}
+beta = {start = 0.0, stop = 1.2, num = 96}
 """
-#: Chunks saved before a signal is sent (of 240): the run is well under way.
+#: Chunks saved before a signal is sent (of 480): the run is well under way.
 SAVED_BEFORE_SIGNAL = 20
 
 
@@ -224,11 +226,15 @@ def assert_fields_equal(node: xr.Dataset, index: dict, expected) -> None:
     so with warm starts (the default) the labels are equal, the continuous fields
     agree to the polish of the orbits (the fast preset's event times, 1e-9: within
     1e-7 of the field's scale) and ``cycles``, the periods each search took from its
-    seed, is not compared (docs/api.md, "Warm starts")."""
+    seed, is not compared (docs/api.md, "Warm starts"). Design quantities that
+    ``expected`` did not compute (None) must be absent from ``node`` (attribute "off")."""
     rest = (expected.regime_rest != regimes.NOT_COMPUTED).any()
     assert ("regime_rest" in node.data_vars) == rest
     for name in FIELDS:
         if name == "regime_rest" and not rest or name == "cycles":
+            continue
+        if getattr(expected, name) is None:  # not asked for: absent, never NaN-filled
+            assert name not in node.data_vars and node.attrs["design_quantities"] == "off", name
             continue
         da = node[name].isel(index) if index else node[name]
         da = da.transpose(*(d for d in ("point", "r", "beta", "mass") if d in da.dims))
@@ -501,11 +507,12 @@ def test_local_cluster_multi_scene_end_to_end(multi_on_local_cluster):
     np.testing.assert_allclose(sweep["gamma"], MULTI_SWEEP["gamma"])
     np.testing.assert_allclose(sweep["r"], MULTI_SWEEP["r"], rtol=1e-14)
     np.testing.assert_allclose(sweep["beta"], MULTI_SWEEP["beta"], rtol=1e-14, atol=1e-15)
-    assert_cf_and_boundaries(sweep, ("gamma", "r"), max_cycles=120)
+    assert_cf_and_boundaries(sweep, ("gamma", "r"), max_cycles=120, design=True)
     assert json.loads(sweep.attrs["settings"])["max_cycles"] == 120
     R, B = np.meshgrid(sweep["r"].values, sweep["beta"].values, indexing="ij")
     for i, g in enumerate(MULTI_SWEEP["gamma"]):
-        expected = classify(Scene("ground", 2, 1, gamma=g, kappa=1.0), R, B, "fast", max_cycles=120)
+        scene = Scene("ground", 2, 1, gamma=g, kappa=1.0)
+        expected = classify(scene, R, B, "fast", max_cycles=120, design=True)
         assert_fields_equal(sweep, {"gamma": i}, expected)
     assert len(np.unique(sweep["regime"])) >= 2  # a map, not a constant
 
@@ -513,10 +520,10 @@ def test_local_cluster_multi_scene_end_to_end(multi_on_local_cluster):
     assert pts["regime"].dims == ("point",)
     for name, values in MULTI_POINTS.items():
         np.testing.assert_array_equal(pts[name], values)
-    assert_cf_and_boundaries(pts, ("point",), max_cycles=120)
+    assert_cf_and_boundaries(pts, ("point",), max_cycles=120, design=True)
     for i, (r, b, g) in enumerate(zip(*MULTI_POINTS.values(), strict=True)):
         expected = classify(
-            Scene("mass", 3, 1, gamma=g), np.array([r]), np.array([b]), "fast", max_cycles=120
+            Scene("mass", 3, 1, gamma=g), [r], [b], "fast", max_cycles=120, design=True
         )
         assert_fields_equal(pts, {"point": slice(i, i + 1)}, expected)
 

@@ -37,7 +37,7 @@ from study import Study
 from study.errors import StudyError
 from tasks import Scene, classify
 from tasks.multicontact import MultiScene
-from tasks.result import FIELDS
+from tasks.result import DESIGN_FIELDS, FIELDS
 from tasks.scene import stuck_basis
 from tasks.structures import beam
 
@@ -204,10 +204,13 @@ def test_one_contact_scene_keeps_its_layout(written):
     _, tree = written
     ds = tree["one"].to_dataset()
     assert "contact" not in ds.dims and "regime_combined" not in ds
-    fields = set(FIELDS) - {"regime_rest"}
-    assert fields <= set(ds.data_vars)
+    # the design quantities off (the default): absent, and said so; several contacts
+    # always hold their force and dissipation
+    fields = set(FIELDS) - {"regime_rest", *DESIGN_FIELDS}
     assert {v for v in ds.data_vars if not v.startswith("beta_")} == fields
-    assert ds.regime.dims == ("beta", "r") and ds.amplitude.dims == ("mass", "beta", "r")
+    assert ds.attrs["design_quantities"] == "off" and "mass" not in ds.dims
+    assert tree["two_walls"].attrs["design_quantities"] == "on"
+    assert ds.regime.dims == ("beta", "r")
     assert ds.attrs["contact_mass"] == 1 and "n_contacts" not in ds.attrs
 
 

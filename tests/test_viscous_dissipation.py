@@ -75,7 +75,7 @@ def test_viscous_dissipation_without_friction_is_the_harmonic_one(name):
         C = scene.damping_matrix(r)  # r C of Eq. 1.1
         X = np.linalg.solve(K - r * r * M + 1j * C, scene.load_vector(r))
         expected = np.pi * float(np.real(X.conj() @ C @ X))
-        res = classify(scene, r, 0.0)
+        res = classify(scene, r, 0.0, design=True)
         assert float(res.dissipation_viscous) == pytest.approx(expected, rel=1e-10)
         # and the amplitudes of the same harmonic response
         b = scene.contact_vector()
@@ -86,6 +86,6 @@ def test_viscous_dissipation_without_friction_is_the_harmonic_one(name):
 
 def test_undamped_scenes_report_zero_viscous_dissipation():
     scene = CONFIGURATIONS["2dof_ground_m1"]
-    res = classify(scene, np.array([0.7, 1.3, 0.7]), np.array([0.3, 0.3, 0.0]))
+    res = classify(scene, np.array([0.7, 1.3, 0.7]), np.array([0.3, 0.3, 0.0]), design=True)
     assert np.all(res.dissipation_viscous == 0.0)
     assert np.all(res.dissipation[:2] > 0.0)

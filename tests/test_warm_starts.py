@@ -89,8 +89,9 @@ def test_design_quantities_only_when_asked():
     scene = PANELS["base_3dof_m2"][0]
     r_axis, beta_axis = np.linspace(0.3, 2.5, 12), np.linspace(0.0, 2.0, 6)
     r, beta = np.meshgrid(r_axis, beta_axis, indexing="ij")
-    full = classify(scene, r, beta)
-    bare = classify(scene, r, beta, design=False)
+    assert resolve("balanced").design is False  # off unless asked for
+    full = classify(scene, r, beta, design=True)
+    bare = classify(scene, r, beta)  # the default
     for name in DESIGN_FIELDS:
         assert getattr(bare, name) is None  # not computed: absent, never NaN posing as values
         assert name not in bare.as_dict()
@@ -153,17 +154,17 @@ def test_fields_do_not_depend_on_the_grouping_of_the_points():
     scene = Scene("base", 3, 2, gamma=0.8, kappa=1.3)
     r, beta = np.meshgrid(np.linspace(0.3, 2.5, 40), np.linspace(0.0, 2.0, 10), indexing="ij")
     r, beta = r.ravel(), beta.ravel()
-    whole = classify(scene, r, beta)
+    whole = classify(scene, r, beta, design=True)
     assert set(np.unique(whole.regime)) >= {regimes.STICK_SLIP, regimes.CONTINUOUS}
     order = np.random.default_rng(3).permutation(r.size)
-    parts = [classify(scene, r[p], beta[p]) for p in np.array_split(order, 3)]
+    parts = [classify(scene, r[p], beta[p], design=True) for p in np.array_split(order, 3)]
     regrouped = whole.reshape((-1,)).as_dict()
     joined = {k: np.concatenate([np.asarray(getattr(p, k)) for p in parts]) for k in regrouped}
     back = np.argsort(order)
     other = type(whole)(**{k: v[back] for k, v in joined.items()})
     assert not np.array_equal(other.cycles, whole.cycles)  # other seeds were used
     _fields_agree(whole, other, 1e-9)
-    again = classify(scene, r, beta)
+    again = classify(scene, r, beta, design=True)
     for name, value in whole.as_dict().items():
         np.testing.assert_array_equal(getattr(again, name), value, err_msg=name)
 

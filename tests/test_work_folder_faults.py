@@ -2,7 +2,7 @@
 
 * damage that used to block every rerun or to be reused silently: a directory or
   a FIFO where a chunk file belongs, a file where a scene folder belongs, a
-  chunk re-signed without a field ('dissipation') or with another dtype, an
+  chunk re-signed without a field ('stick_fraction') or with another dtype, an
   adaptive plane re-signed as a 1 x 1 array, an adaptive point list re-signed
   to length 1, an adaptive plane without a field, a stale lock of any form:
   each is named in one line, discarded and computed again, and the result is
@@ -114,7 +114,7 @@ def test_damaged_entries_are_named_discarded_recomputed(tmp_path, client, monkey
     (grid[0] / "x").write_text("x")
     grid[1].unlink()
     os.mkfifo(grid[1])  # a FIFO where a chunk file belongs
-    _resign(grid[2], lambda a: {k: v for k, v in a.items() if k != "dissipation"})
+    _resign(grid[2], lambda a: {k: v for k, v in a.items() if k != "stick_fraction"})
     _resign(grid[3], lambda a: a | {"regime": a["regime"].astype(np.int16)})
     shutil.rmtree(work / "pts")
     (work / "pts").write_text("not a folder")  # a file where a scene folder belongs
@@ -126,7 +126,7 @@ def test_damaged_entries_are_named_discarded_recomputed(tmp_path, client, monkey
     expected = [
         (grid[0], "not a chunk file"),
         (grid[1], "not a chunk file"),
-        (grid[2], "has no field 'dissipation'"),
+        (grid[2], "has no field 'stick_fraction'"),
         (grid[3], "field 'regime' is int16, expected int8"),
         (work / "pts", "not a scene folder"),
         (lock, "a stale lock"),
@@ -146,14 +146,14 @@ def test_adaptive_planes_and_point_lists_are_verified_before_use(tmp_path, clien
     assert len(planes) == 2 and len(lists) >= 2  # point lists merged (study.saving)
     # a plane re-signed as 1 x 1 (it was accepted: 118,274 of 540,000 regimes wrong)
     _resign(planes[0], lambda a: {k: (v[:1, :1] if v.ndim >= 2 else v) for k, v in a.items()})
-    _resign(planes[1], lambda a: {k: v for k, v in a.items() if k != "dissipation"})
+    _resign(planes[1], lambda a: {k: v for k, v in a.items() if k != "stick_fraction"})
     _resign(lists[0], lambda a: {k: (v[:1] if v.ndim else v) for k, v in a.items()})
     _resign(lists[1], lambda a: {k: v for k, v in a.items() if k != "cycles"})
     log = io.StringIO()
     run_study(study, out, client=client, progress=False, stream=log)
     expected = [
         (planes[0], "field 'regime' has shape (1, 1), expected (64, 40)"),
-        (planes[1], "has no field 'dissipation'"),
+        (planes[1], "has no field 'stick_fraction'"),
         (lists[0], "has shape (1,), expected"),
         (lists[1], "has no field 'cycles'"),
     ]
