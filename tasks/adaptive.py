@@ -742,11 +742,19 @@ def adaptive_map(
     r = np.asarray(r, dtype=float)
     beta = np.asarray(beta, dtype=float)
 
+    skipped: set[str] = set()  # fields not computed (design quantities unless asked)
+
     def batch(i: np.ndarray, j: np.ndarray) -> dict[str, np.ndarray]:
         res = classify_fn(scene, r[i], beta[j], fidelity=fidelity, **settings)
-        return {k: np.asarray(getattr(res, k)) for k in FIELDS}
+        out = {}
+        for k in FIELDS:
+            if (v := getattr(res, k)) is None:  # a placeholder, dropped from the result
+                skipped.add(k)
+                v = np.full((i.size, scene.dof) if k in MASS_FIELDS else i.size, np.nan)
+            out[k] = np.asarray(v)
+        return out
 
-    return refine(
+    result = refine(
         (r.size, beta.size),
         batch,
         coarse_step,
@@ -757,3 +765,6 @@ def adaptive_map(
         dof=scene.dof,
         barriers=barriers,
     )
+    for k in skipped:  # absent, never NaN-filled
+        del result.fields[k]
+    return result

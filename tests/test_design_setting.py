@@ -149,6 +149,24 @@ def test_design_true_gives_them_at_every_determined_point(runs):
         assert float(ds["amplitude"].where(done).max()) > 0, name
 
 
+def test_adaptive_map_in_python_holds_the_design_quantities_only_when_asked():
+    """analysis.adaptive.adaptive_map (this process): absent by default, never NaN-filled;
+    with design=True finite at every simulated determined point."""
+    from analysis.adaptive import adaptive_map
+    from tasks import Scene
+
+    scene, r, beta = Scene("ground", 2), np.linspace(0.2, 2.4, 33), np.linspace(0.0, 1.5, 17)
+    bare = adaptive_map(scene, r, beta, coarse_step=8, fidelity="fast")
+    full = adaptive_map(scene, r, beta, coarse_step=8, fidelity="fast", design=True)
+    assert not set(DESIGN_FIELDS) & set(bare.fields) and set(DESIGN_FIELDS) <= set(full.fields)
+    for name, values in bare.fields.items():
+        np.testing.assert_array_equal(values, full.fields[name], err_msg=name)
+    done = full.fields["simulated"] & (full.fields["regime"] >= 0)
+    assert done.sum() > 20
+    for name in DESIGN_FIELDS:
+        assert np.isfinite(full.fields[name][done]).all(), name
+
+
 def test_design_default_and_false_are_the_same_settings():
     default = Study.from_dict(tomllib.loads(OFF)).settings
     explicit = Study.from_dict(
