@@ -26,7 +26,7 @@ the points in a study's order: r outer, beta inner), compiled beforehand:
 
 The paper's method (``tasks.baseline.paper_method``: scipy RK45 + events, 100
 cycles from rest) runs on a seeded sample of each panel's points (``--paper-points``,
-default 12 per panel, 276 in all; its cost per point varies 0.1-1 s with the
+default 16 per panel, 368 in all; its cost per point varies 0.1-1 s with the
 point, so a panel's own ratio is indicative and the ratio over all panels, mean
 time against mean time, is the figure to quote). Labels: regime and stops of the
 default equal the cold run's point for point, and the design run's (the design pass
@@ -158,6 +158,21 @@ def detail(scene: Scene, r: np.ndarray, beta: np.ndarray, title: str) -> tuple[l
     return class_rows, [grouping]
 
 
+def summary_row(title: str, size: str, t: dict) -> list[str]:
+    """A row of the main table from CPU totals (seconds) and counts."""
+    cost = {n: t[f"cpu_{n}"] / t["points"] for n in CONFIGS}
+    paper_s = t["paper_cpu"] / t["paper_n"]
+    return (
+        [title, size]
+        + [f"{cost[n] * 1e3:.3f}" for n in CONFIGS]
+        + [f"{paper_s * 1e3:.0f}"]
+        + [f"{paper_s / cost[n]:.0f}x" for n in CONFIGS]
+        + [f"{cost['design'] / cost['default'] - 1:.0%}"]
+        + [f"{t[k]} / {t['points']}" for k in ("same", "same_design")]
+        + [f"{t['agree']} / {t['paper_n']}"]
+    )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="100 x 40 panels, 4 paper points")
@@ -167,57 +182,29 @@ def main() -> None:
     parser.add_argument("--code", default=None, help="import tasks from this checkout instead")
     args = parser.parse_args()
     size = (100, 40) if args.quick else None
-    n_paper = args.paper_points or (4 if args.quick else 12)
+    n_paper = args.paper_points or (4 if args.quick else 16)
     print("machine: " + "; ".join(f"{k} {v}" for k, v in machine().items()))
     classify(Scene("ground", 2), [0.5, 1.5], [0.1, 0.6])  # compile / load
     classify(Scene("ground", 2), [0.5, 1.5], [0.1, 0.6], design=True)
     rows, totals = [], {"points": 0, "paper_cpu": 0.0, "paper_n": 0, "agree": 0}
-    totals |= {f"cpu_{n}": 0.0 for n in CONFIGS}
+    totals |= {"same": 0, "same_design": 0} | {f"cpu_{n}": 0.0 for n in CONFIGS}
     start = time.perf_counter()
     todo = panels(tuple(args.only or FIGURES), size)
     for k, (fig, name, scene, r_axis, beta_axis) in enumerate(todo):
         r, beta = np.meshgrid(r_axis, beta_axis, indexing="ij")
         m = measure(scene, r, beta, n_paper, SEED + k)
-        res, cost = m["results"], m["cost"]
-        paper_s = m["paper_cpu"] / n_paper
-        default, cold, design = res["default"], res["cold"], res["design"]
-        same = np.sum(
-            (default.regime == cold.regime) & (default.stops_per_cycle == cold.stops_per_cycle)
-        )
-        same_design = np.sum(
-            (default.regime == design.regime) & (default.stops_per_cycle == design.stops_per_cycle)
-        )
-        rows.append(
-            [f"{fig}:{name}", f"{r.shape[0]} x {r.shape[1]}"]
-            + [f"{cost[n] * 1e3:.3f}" for n in CONFIGS]
-            + [f"{paper_s * 1e3:.0f}"]
-            + [f"{paper_s / cost[n]:.0f}x" for n in CONFIGS]
-            + [f"{cost['design'] / cost['default'] - 1:.0%}"]
-            + [f"{same} / {r.size}", f"{same_design} / {r.size}", f"{m['paper_agree']} / {n_paper}"]
-        )
-        totals["points"] += r.size
-        totals["paper_cpu"] += m["paper_cpu"]
-        totals["paper_n"] += n_paper
-        totals["agree"] += m["paper_agree"]
-        for n in CONFIGS:
-            totals[f"cpu_{n}"] += cost[n] * r.size
-        totals["same"] = totals.get("same", 0) + int(same)
-        totals["same_design"] = totals.get("same_design", 0) + int(same_design)
+        default = m["results"]["default"]
+        panel = {"points": r.size, "paper_cpu": m["paper_cpu"], "paper_n": n_paper}
+        panel |= {"agree": m["paper_agree"]}
+        panel |= {f"cpu_{n}": m["cost"][n] * r.size for n in CONFIGS}
+        for key, other in (("same", "cold"), ("same_design", "design")):
+            x = m["results"][other]
+            same = (default.regime == x.regime) & (default.stops_per_cycle == x.stops_per_cycle)
+            panel[key] = int(same.sum())
+        rows.append(summary_row(f"{fig}:{name}", f"{r.shape[0]} x {r.shape[1]}", panel))
+        totals = {key: totals[key] + panel[key] for key in totals}
         print(f"[{time.perf_counter() - start:.0f} s] {fig}:{name} done", file=sys.stderr)
-    paper_s = totals["paper_cpu"] / totals["paper_n"]
-    mean = {n: totals[f"cpu_{n}"] / totals["points"] for n in CONFIGS}
-    rows.append(
-        [f"all {len(todo)} panels", f"{totals['points']:,}"]
-        + [f"{mean[n] * 1e3:.3f}" for n in CONFIGS]
-        + [f"{paper_s * 1e3:.0f}"]
-        + [f"{paper_s / mean[n]:.0f}x" for n in CONFIGS]
-        + [f"{mean['design'] / mean['default'] - 1:.0%}"]
-        + [
-            f"{totals['same']} / {totals['points']}",
-            f"{totals['same_design']} / {totals['points']}",
-        ]
-        + [f"{totals['agree']} / {totals['paper_n']}"]
-    )
+    rows.append(summary_row(f"all {len(todo)} panels", f"{totals['points']:,}", totals))
     print("\nCPU ms per point (one classify call per panel, balanced); paper's method on a sample")
     print(
         table(
