@@ -364,8 +364,7 @@ def dense_fields(sc: dict, n_r: int, n_beta: int, cache: Path, fidelity: str):
 def replay_main(args, n_r: int, n_beta: int) -> int:
     """The refinement of each ``--cluster`` scene replayed on its dense grid's fields."""
     from analysis.adaptive import closed_form_hint
-    from study.adaptive import VERIFY_SEED
-    from tasks.adaptive import DEFAULT_VERIFY_MIN, StreamRefinement
+    from tasks.stream import StreamRefinement
 
     print(
         f"refinement replayed on the dense grid's fields, {n_r} x {n_beta}, fidelity "
@@ -380,31 +379,63 @@ def replay_main(args, n_r: int, n_beta: int) -> int:
     print("|" + "---|" * 9)
     for sc in cluster_scenes(args.scenes):
         scene, r, beta, dense = dense_fields(sc, n_r, n_beta, args.cache, args.fidelity)
-        t = time.process_time()
         hint = None if args.hint == "none" else closed_form_hint(scene, r, beta, args.hint)
-        layout = {k: (str(v.dtype), 0) for k, v in dense.items()}
-        ref = StreamRefinement((n_r, n_beta), args.coarse_step, hint, fields=layout)
-        while (idx := ref.take(64)).size:
-            ij = np.unravel_index(idx, ref.shape)
-            ref.accept(idx, {k: v[ij] for k, v in dense.items()})
-        sample = ref.verification(0.005, DEFAULT_VERIFY_MIN, VERIFY_SEED)
-        ij = np.unravel_index(sample, ref.shape)
-        v = ref.accept_verification(sample, {k: f[ij] for k, f in dense.items()})
-        out = ref.result()
-        cpu = time.process_time() - t
-        sim = out["simulated"]
-        cycles = dense["cycles"].astype(float)
-        share = cycles[sim].sum() / cycles.sum()
-        differ = out["regime"] != dense["regime"]
-        n = sim.size
-        print(
-            f"| {sc['name']} | {n:,} | {100 * sim.mean():.2f} | {100 * share:.2f} "
-            f"| {1 / share:.1f} | {percent(n - int(differ.sum()), n, 4)} "
-            f"({int(differ.sum())} differ) | {int((differ & (dense['regime'] >= 0)).sum())} "
-            f"| {v.agree} / {v.sampled} | {cpu:.2f} |",
-            flush=True,
-        )
+        runs = {"": StreamRefinement}
+        if args.code is not None:
+            runs = {", before": _module(args.code, "tasks/adaptive.py").StreamRefinement} | runs
+        maps = {}
+        for label, cls in runs.items():
+            out, v, cpu = _replay(cls, (n_r, n_beta), args.coarse_step, hint, dense)
+            maps[label] = out
+            sim = out["simulated"]
+            cycles = dense["cycles"].astype(float)
+            share = cycles[sim].sum() / cycles.sum()
+            differ = out["regime"] != dense["regime"]
+            n = sim.size
+            print(
+                f"| {sc['name']}{label} | {n:,} | {100 * sim.mean():.2f} | {100 * share:.2f} "
+                f"| {1 / share:.1f} | {percent(n - int(differ.sum()), n, 4)} "
+                f"({int(differ.sum())} differ) | {int((differ & (dense['regime'] >= 0)).sum())} "
+                f"| {v.agree} / {v.sampled} | {cpu:.3f} |",
+                flush=True,
+            )
+        if len(maps) > 1:
+            a, b = maps.values()
+            same = all(np.array_equal(a[k], b[k]) for k in a)
+            print(f"| {sc['name']}: same map (every field, simulated, verification) | {same} |")
     return 0
+
+
+def _replay(cls, shape, coarse_step, hint, dense):
+    """One refinement (class ``cls``) on the dense fields, point lists of 64: its result,
+    verification summary and CPU seconds (the hint excluded)."""
+    from study.adaptive import VERIFY_SEED
+    from tasks.adaptive import DEFAULT_VERIFY_MIN
+
+    t = time.process_time()
+    layout = {k: (str(v.dtype), 0) for k, v in dense.items()}
+    ref = cls(shape, coarse_step, hint, fields=layout)
+    while (idx := ref.take(64)).size:
+        ij = np.unravel_index(idx, ref.shape)
+        ref.accept(idx, {k: v[ij] for k, v in dense.items()})
+    sample = ref.verification(0.005, DEFAULT_VERIFY_MIN, VERIFY_SEED)
+    ij = np.unravel_index(sample, ref.shape)
+    v = ref.accept_verification(sample, {k: f[ij] for k, f in dense.items()})
+    out = ref.result()
+    out["levels"] = np.asarray(ref.level_sizes())
+    return out, v, time.process_time() - t
+
+
+def _module(code: Path, path: str):
+    """The module ``path`` of another checkout ``code`` (e.g. ``/work/main``), loaded under
+    a name of its own (its imports come from this checkout)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(f"before_{Path(path).stem}", code / path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # its dataclasses look their module up
+    spec.loader.exec_module(module)
+    return module
 
 
 def example_main(args) -> int:
@@ -462,6 +493,11 @@ def main(argv: list[str] | None = None) -> int:
         help="--cluster: also the adaptive study without corner seeds, lists of 64",
     )
     ap.add_argument("--example", type=int, default=0, help="time the CLI on the example N times")
+    ap.add_argument(
+        "--code",
+        type=Path,
+        help="--replay: also the refinement of this checkout (e.g. /work/main), same run",
+    )
     args = ap.parse_args(argv)
     n_r, n_beta = (int(x) for x in args.size.lower().split("x"))
     if args.example:

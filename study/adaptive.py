@@ -1,6 +1,6 @@
 """``mode = "adaptive"``: a grid scene simulated by refinement without barriers.
 
-The refinement logic is :class:`tasks.adaptive.StreamRefinement` (pure
+The refinement logic is :class:`tasks.stream.StreamRefinement` (pure
 numerics): a cell is split as soon as its corners are known. This plan hands
 out its ready points as units of work (:mod:`study.chunks` describes the
 interface every plan shares): point lists of about ``task_seconds`` of work
@@ -53,11 +53,11 @@ from study.verify import Expected
 from tasks.adaptive import (
     ADAPTIVE_FIELDS,
     DEFAULT_VERIFY_MIN,
-    StreamRefinement,
     VerificationSummary,
     disagreement_upper_bound,
 )
 from tasks.seeds import grid_neighbours, grid_offsets
+from tasks.stream import StreamRefinement
 
 #: Seed of the verification sample (fixed: a rerun draws the same sample).
 VERIFY_SEED = 0
@@ -172,6 +172,7 @@ class _Plane:
     arrived: list = field(default_factory=list)  # (idx, arrays) not yet given to ``ref``
     hint_due: bool = False  # the closed-form hint is computed at the first result
     inferred: bool = False  # the inferred points are filled (during the verification)
+    handed: bool = False  # a point list was handed out since the last result arrived
     orbits: _Orbits | None = None  # solved orbits that seed new point lists (warm starts)
     batches: int = 0
     reused: int = 0  # points answered from saved point lists
@@ -369,11 +370,13 @@ class AdaptivePlan(ScenePlan):
             few = len(pl.outstanding) < PARTIAL_BELOW or self.barriers
             if pl.todo.size >= size or (pl.todo.size and few):
                 idx, pl.todo = pl.todo[:size], pl.todo[size:]
+                pl.handed = True
                 return self._unit(pl, np.sort(idx))
             if pl.todo.size or pl.outstanding:
-                if pl.phase == "verify" and not pl.todo.size and not pl.inferred:
+                if pl.phase == "verify" and not (pl.todo.size or pl.inferred or pl.handed):
                     # the inferred points' fields (accept_verification compares them) are
-                    # filled while the sample computes, not after: refinement is done
+                    # filled while the sample computes, not after: refinement is done; not
+                    # before the point lists just handed out are submitted (pl.handed)
                     pl.ref._fill_inferred()
                     pl.inferred = True
                 return WAIT
@@ -443,6 +446,7 @@ class AdaptivePlan(ScenePlan):
         pl = self._active[unit.sweep]
         pl.outstanding.discard(unit.key)
         pl.computed += 1
+        pl.handed = False
         if pl.orbits is not None and "final" in arrays:
             pl.orbits.add(unit.idx, arrays["final"])
         if unit.phase == "verify":
