@@ -78,6 +78,11 @@ MIN_LIST = 256
 #: Solved points (nearest first, :func:`tasks.seeds.grid_neighbours`) whose orbits are
 #: sent with a point list to seed each of its points (one contact, warm starts on).
 GIVEN_PER_POINT = 2
+#: A point list of at most this many points is computed in the client's thread
+#: (:meth:`AdaptivePlan.compute_here`): at the end of a refinement, boundaries are
+#: followed by chains of lists of a few points, each waiting for the one before, and
+#: a round trip through the cluster (about 10 ms) costs ten times their computing.
+LOCAL_POINTS = 16
 #: Fraction of the points an adaptive scene is expected to simulate (planning only).
 ADAPTIVE_SIMULATED_FRACTION = 0.05
 
@@ -175,6 +180,7 @@ class _Plane:
     handed: bool = False  # a point list was handed out since the last result arrived
     orbits: _Orbits | None = None  # solved orbits that seed new point lists (warm starts)
     batches: int = 0
+    here: int = 0  # point lists computed by the client (AdaptivePlan.compute_here)
     reused: int = 0  # points answered from saved point lists
     computed: int = 0
     shown: float = field(default_factory=time.monotonic)
@@ -197,6 +203,8 @@ class AdaptivePlan(ScenePlan):
     seed_lists: bool = True
     #: Fewest points of a list cut smaller than the chunk target (:data:`MIN_LIST`).
     min_list: int = MIN_LIST
+    #: Largest point list computed in the client's thread (:meth:`compute_here`; 0: none).
+    local_points: int = LOCAL_POINTS
 
     @classmethod
     def build(cls, spec: SceneSpec, study: Study) -> AdaptivePlan:
@@ -342,6 +350,7 @@ class AdaptivePlan(ScenePlan):
             if key not in keys:  # a point list: its fields, dtypes and length now
                 work.reuse(self.spec.name, key, self.expected(self._list_length(key)))
         self._active: dict[tuple[int, ...], _Plane] = {}
+        self._here: bool | None = None  # the simulator is cached (compute_here)
         self.finished_points = reused * int(np.prod(self.spec.plane_shape))
         return len(keys), reused, self.finished_points
 
@@ -439,6 +448,21 @@ class AdaptivePlan(ScenePlan):
 
     def task(self, unit: PointList, axes=None) -> dict:
         return unit.task
+
+    def compute_here(self, unit: PointList) -> bool:
+        """Whether the client computes this point list itself (:mod:`study.drive`): at most
+        :attr:`local_points` points of one contact (whose simulator releases the GIL), and
+        the simulator in numba's on-disk cache (the client loads it, about 0.2 s once;
+        it never compiles it, e.g. on the login node of a cluster)."""
+        if unit.n_points > self.local_points or contacts.is_multi(self.spec.structure):
+            return False
+        if self._here is None:
+            from tasks import numba_cache
+
+            self._here = numba_cache.is_compiled()
+        if self._here:
+            self._active[unit.sweep].here += 1
+        return self._here
 
     def accept(self, unit: PointList, arrays: dict[str, np.ndarray], work) -> None:
         """Hand a point list's results (saved with its indices by :mod:`study.drive`,
@@ -542,7 +566,8 @@ class AdaptivePlan(ScenePlan):
             f"{self._where(pl)}: {n_sim:,} of {ref.n_points:,} points simulated "
             f"({100 * n_sim / ref.n_points:.2f} %, verification included) in "
             f"{len(ref.level_sizes())} levels, {time.perf_counter() - pl.t0:.1f} s; "
-            f"{pl.computed} point lists computed, {pl.reused:,} saved points reused; "
+            f"{pl.computed} point lists computed ({pl.here} by the client), "
+            f"{pl.reused:,} saved points reused; "
             f"{summary.line()}",
             always=True,
         )

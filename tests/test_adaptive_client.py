@@ -1,0 +1,86 @@
+"""Short point lists of an adaptive plane computed by the client (study.drive,
+AdaptivePlan.compute_here): the same map as when the cluster computes every list,
+and a list that fails in the client goes to the cluster instead.
+"""
+
+from __future__ import annotations
+
+import io
+import re
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from study import Study, run_study
+from study.adaptive import LOCAL_POINTS, AdaptivePlan
+from study.drive import Driven, _Window
+
+ADAPTIVE = """
+[study]
+name = "here"
+fidelity = "fast"
+
+[[scene]]
+name = "s"
+contact = "ground"
+dof = 2
+mode = "adaptive"
+coarse_step = 8
+verify_fraction = 0.01
+r = {start = 0.1, stop = 2.4, num = 120}
+beta = {start = 0.0, stop = 1.5, num = 60}
+"""
+
+KEYS = ("regime", "simulated", "verification", "converged", "stops_per_cycle", "period")
+
+
+def _run(path, out, client) -> tuple[dict[str, np.ndarray], int, int]:
+    log = io.StringIO()
+    run_study(Study.from_toml(path), out, client=client, progress=False, stream=log)
+    lists, here = (
+        int(x) for x in re.search(r"(\d+) point lists computed \((\d+) by", log.getvalue()).groups()
+    )
+    with xr.open_dataset(out) as ds:
+        return {k: ds[k].values for k in KEYS}, lists, here
+
+
+@pytest.mark.cluster
+def test_short_point_lists_computed_by_the_client_give_the_same_map(
+    tmp_path, cluster_client, monkeypatch
+):
+    path = tmp_path / "here.toml"
+    path.write_text(ADAPTIVE, encoding="utf-8")
+    got, lists, here = _run(path, tmp_path / "here.nc", cluster_client)
+    assert 0 < here < lists  # the short ones only, the others on the cluster
+    monkeypatch.setattr(AdaptivePlan, "local_points", 0)
+    want, _, none = _run(path, tmp_path / "cluster.nc", cluster_client)
+    assert none == 0
+    for k in KEYS:  # the labels (hence the refinement) do not depend on where
+        np.testing.assert_array_equal(got[k], want[k], err_msg=k)
+    assert len(np.unique(want["regime"])) >= 3 and want["simulated"].mean() < 0.5
+
+
+class _Plan:
+    """A plan whose every unit is to be computed here, with a task no simulator knows."""
+
+    def __init__(self) -> None:
+        self.accepted: list = []
+
+    def compute_here(self, unit) -> bool:
+        return unit.n_points <= LOCAL_POINTS
+
+    def task(self, unit) -> dict:
+        return {"kind": "no such kind"}
+
+
+def test_a_point_list_that_fails_in_the_client_goes_to_the_cluster():
+    taken: list = []
+    win = SimpleNamespace(done=Driven(), take=lambda *a: taken.append(a))
+    plan, unit = _Plan(), SimpleNamespace(n_points=3, key="k")
+    assert _Window.here(win, plan, unit) is False  # ValueError here: submitted instead
+    assert not taken and win.done.here == 0
+    big = SimpleNamespace(n_points=LOCAL_POINTS + 1, key="k")
+    assert _Window.here(win, plan, big) is False  # too long: never tried here
+    assert not taken
