@@ -196,12 +196,33 @@ def _cpu(client) -> float:
 BEFORE = {"seed_lists": False, "min_list": 64}
 
 
+def _before_patch() -> list[tuple[object, str, object]]:
+    from study.adaptive import AdaptivePlan
+
+    return [(AdaptivePlan, name, value) for name, value in BEFORE.items()]
+
+
+def _code_patch(code: Path) -> list[tuple[object, str, object]]:
+    """``--code DIR``: the adaptive study with the refinement of another checkout (e.g.
+    ``/work/main``), no point lists computed by the client and zlib level 4."""
+    import study.adaptive
+    import study.netcdf
+
+    old = _module(code, "tasks/adaptive.py")
+    return [
+        (study.adaptive, "StreamRefinement", old.StreamRefinement),
+        (study.adaptive.AdaptivePlan, "local_points", 0),
+        (study.netcdf, "COMPRESSION", {"zlib": True, "complevel": 4, "shuffle": True}),
+    ]
+
+
 def _run(
-    text: str, folder: Path, client, barriers: bool = False, before: bool = False
+    text: str, folder: Path, client, barriers: bool = False, patch: list | None = None
 ) -> tuple[float, dict, str]:
     """Wall seconds, regime and simulated arrays (and attributes, and ``cpu``: the CPU
     seconds of this process and the workers), and the log of one study run
-    (``client`` None: as ``study run`` would, threads of this process)."""
+    (``client`` None: as ``study run`` would, threads of this process); ``patch``:
+    ``(object, attribute, value)`` set for this run only (:data:`BEFORE`, --code)."""
     import io
 
     import xarray as xr
@@ -213,11 +234,10 @@ def _run(
     path.write_text(text, encoding="utf-8")
     out = folder / f"bench-{time.monotonic_ns()}.nc"
     log = io.StringIO()
-    AdaptivePlan.barriers = barriers
-    defaults = {name: getattr(AdaptivePlan, name) for name in BEFORE}
-    if before:
-        for name, value in BEFORE.items():
-            setattr(AdaptivePlan, name, value)
+    patch = [(AdaptivePlan, "barriers", barriers), *(patch or [])]
+    saved = [(obj, name, getattr(obj, name)) for obj, name, _ in patch]
+    for obj, name, value in patch:
+        setattr(obj, name, value)
     try:
         cpu, own = _cpu(client), time.process_time()
         t = time.perf_counter()
@@ -225,9 +245,8 @@ def _run(
         seconds = time.perf_counter() - t
         cpu, own = _cpu(client) - cpu, time.process_time() - own
     finally:
-        AdaptivePlan.barriers = False
-        for name, value in defaults.items():
-            setattr(AdaptivePlan, name, value)
+        for obj, name, value in reversed(saved):
+            setattr(obj, name, value)
     with xr.open_dataset(out) as ds:
         arrays = {k: ds[k].values for k in ("regime", "simulated") if k in ds}
         arrays["attrs"] = dict(ds.attrs)
@@ -279,9 +298,16 @@ def cluster_main(args, n_r: int, n_beta: int) -> int:
             "| CPU ratio | labels equal to dense | verification |"
         )
         print("|" + "---|" * 14)
+        befores = []  # (label, patch) run just before the current study: the same load
+        if args.before:
+            befores.append(("before", _before_patch()))
+        if args.code is not None:
+            befores.append((f"{args.code}", _code_patch(args.code)))
         for sc in scenes:
-            if args.before:  # just before the current study: the same load
-                before = _run(text(sc, (n_r, n_beta), mode), folder, client, before=True)
+            earlier = [
+                (label, _run(text(sc, (n_r, n_beta), mode), folder, client, patch=patch))
+                for label, patch in befores
+            ]
             sec, arr, log = _run(text(sc, (n_r, n_beta), mode), folder, client)
             at = arr["attrs"]
             lists = sum(int(m) for m in re.findall(r"(\d+) point lists computed", log))
@@ -298,13 +324,12 @@ def cluster_main(args, n_r: int, n_beta: int) -> int:
                 equal = f"{percent(same, n, 4)} ({n - same} differ)"
             print(
                 f"| {sc['name']} | {n_r * n_beta:,} | {frac:.2f} | {levels} | {lists} "
-                f"| {sec:.1f} | {dense_s} | {ratio} | {arr['cpu']:.1f} "
+                f"| {sec:.2f} | {dense_s} | {ratio} | {arr['cpu']:.2f} "
                 f"| {arr['client_cpu']:.2f} | {dense_cpu} "
                 f"| {cpu_ratio} | {equal} | {verify} |",
                 flush=True,
             )
-            if args.before:
-                b_sec, b_arr, b_log = before
+            for label, (b_sec, b_arr, b_log) in earlier:
                 b_lists = sum(int(m) for m in re.findall(r"(\d+) point lists computed", b_log))
                 same = np.array_equal(b_arr["regime"], arr["regime"]) and np.array_equal(
                     b_arr["simulated"], arr["simulated"]
@@ -314,8 +339,8 @@ def cluster_main(args, n_r: int, n_beta: int) -> int:
                     b_ratio = f"{d_sec / b_sec:.1f}"
                     b_cpu_ratio = f"{d_arr['cpu'] / b_arr['cpu']:.1f}"
                 print(
-                    f"| {sc['name']}, before | | | | {b_lists} | {b_sec:.1f} | | {b_ratio} "
-                    f"| {b_arr['cpu']:.1f} | {b_arr['client_cpu']:.2f} | | {b_cpu_ratio} "
+                    f"| {sc['name']}, {label} | | | | {b_lists} | {b_sec:.2f} | | {b_ratio} "
+                    f"| {b_arr['cpu']:.2f} | {b_arr['client_cpu']:.2f} | | {b_cpu_ratio} "
                     f"| same map: {same} | |",
                     flush=True,
                 )
@@ -496,7 +521,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--code",
         type=Path,
-        help="--replay: also the refinement of this checkout (e.g. /work/main), same run",
+        help="--replay: also the refinement of this checkout (e.g. /work/main); --cluster: "
+        "also the study with it, no lists computed by the client, zlib 4; same run",
     )
     args = ap.parse_args(argv)
     n_r, n_beta = (int(x) for x in args.size.lower().split("x"))
