@@ -204,7 +204,7 @@ def _before_patch() -> list[tuple[object, str, object]]:
 
 def _code_patch(code: Path) -> list[tuple[object, str, object]]:
     """``--code DIR``: the adaptive study with the refinement of another checkout (e.g.
-    ``/work/main``), no point lists computed by the client and zlib level 4."""
+    ``/work/main``), no point lists computed by the client, zlib level 4 with shuffle."""
     import study.adaptive
     import study.netcdf
 
@@ -212,6 +212,7 @@ def _code_patch(code: Path) -> list[tuple[object, str, object]]:
     return [
         (study.adaptive, "StreamRefinement", old.StreamRefinement),
         (study.adaptive.AdaptivePlan, "local_points", 0),
+        (study.adaptive.AdaptivePlan, "nc_shuffle", True),
         (study.netcdf, "COMPRESSION", {"zlib": True, "complevel": 4, "shuffle": True}),
     ]
 

@@ -205,6 +205,9 @@ class AdaptivePlan(ScenePlan):
     min_list: int = MIN_LIST
     #: Largest point list computed in the client's thread (:meth:`compute_here`; 0: none).
     local_points: int = LOCAL_POINTS
+    #: No byte shuffle in the netCDF file (:data:`study.netcdf.COMPRESSION`): inferred
+    #: points repeat their cell's corner, which deflate finds better unshuffled.
+    nc_shuffle: bool = False
 
     @classmethod
     def build(cls, spec: SceneSpec, study: Study) -> AdaptivePlan:

@@ -59,11 +59,14 @@ NC_CHUNK_ELEMENTS = 1 << 16
 #: map in memory until the file is closed: client memory would grow with it.
 NC_CACHE_BYTES = 2 << 20
 NC_CACHE_SLOTS = 1009
-#: Compression of every variable: deflate (zlib) at level 1 with the byte shuffle, which
-#: any netCDF-4 reader decodes. Level 4 compressed a 1000 x 500 adaptive map (Fig. 4)
-#: to 1.73 MB instead of 2.19 MB, but took 0.145 s of CPU instead of 0.096 s (the whole
-#: write without compression: 0.022 s); a dense 500 x 250 grid 3.51 MB / 0.082 s
-#: against 3.54 MB / 0.068 s (benchmarks/bench_write.py --encoding).
+#: Compression of every variable: deflate (zlib) at level 1, which any netCDF-4 reader
+#: decodes, with HDF5's byte shuffle except where a plan says its values repeat in
+#: runs (``nc_shuffle = False``: an adaptive map, whose inferred points copy their
+#: cell's corner). Measured (benchmarks/bench_write.py --encoding, CPU of writing
+#: every per-point variable): a 1000 x 500 adaptive map of Fig. 4, zlib level 4 with
+#: shuffle (before) 1.73 MB in 0.141 s, level 1 without shuffle 1.53 MB in 0.068 s;
+#: a dense 500 x 250 grid 3.51 MB in 0.079 s, level 1 with shuffle 3.54 MB in 0.064 s
+#: (without: 4.22 MB, 0.092 s). No compression: 0.024 s, 46 MB and 11 MB.
 COMPRESSION: dict[str, object] = {"zlib": True, "complevel": 1, "shuffle": True}
 
 BOUNDARY_ATTRS = {
@@ -272,9 +275,10 @@ def scene_dataset(
         )
     data_vars: dict[str, xr.Variable] = {}
     encoding: dict[str, dict] = {name: {"_FillValue": None} for name in coords}
+    compression = COMPRESSION | {"shuffle": getattr(plan, "nc_shuffle", True)}
     for name, dt in variables.items():
         vdims, vshape = _var_layout(name, dims, shape, plan)
-        enc: dict[str, object] = COMPRESSION | {"chunksizes": _nc_chunksizes(vshape, grid)}
+        enc: dict[str, object] = compression | {"chunksizes": _nc_chunksizes(vshape, grid)}
         if not dt.startswith("float"):  # codes and counts: complete, no fill value
             enc["_FillValue"] = None
         if name in ("regime", "regime_rest"):

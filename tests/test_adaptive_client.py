@@ -84,3 +84,44 @@ def test_a_point_list_that_fails_in_the_client_goes_to_the_cluster():
     big = SimpleNamespace(n_points=LOCAL_POINTS + 1, key="k")
     assert _Window.here(win, plan, big) is False  # too long: never tried here
     assert not taken
+
+
+@pytest.mark.cluster
+def test_the_file_holds_the_work_folder_values_with_its_encoding(
+    tmp_path, cluster_client, monkeypatch
+):
+    """The result file (zlib level 1, no shuffle for an adaptive map: study.netcdf
+    COMPRESSION) read back with xarray equals the result assembled in memory from the
+    same work folder, every variable to the bit."""
+    import study.run as run_module
+    from study.chunks import plan
+    from study.errors import StudyInterrupted
+    from study.netcdf import result_tree, write_result
+    from study.store import WorkDir
+
+    path, out = tmp_path / "here.toml", tmp_path / "here.nc"
+    path.write_text(ADAPTIVE, encoding="utf-8")
+    study = Study.from_toml(path)
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    with monkeypatch.context() as m:  # every unit computed and saved, nothing written
+        m.setattr(run_module, "_assemble", interrupted)
+        with pytest.raises(StudyInterrupted):
+            run_study(study, out, client=cluster_client, progress=False, stream=io.StringIO())
+    work = WorkDir(out)
+    plans = plan(study)
+    for p in plans:
+        p.prepare(work)
+    write_result(study, plans, work, out)
+    memory = result_tree(study, plans, work).to_dataset()
+    with xr.open_dataset(out) as ds:
+        assert set(memory.data_vars) <= set(ds.data_vars)
+        for name in memory.data_vars:
+            np.testing.assert_array_equal(ds[name].values, memory[name].values, err_msg=name)
+            assert ds[name].dtype == memory[name].dtype, name
+        enc = ds["slip_amplitude"].encoding
+        assert enc["zlib"] and enc["complevel"] == 1 and not enc["shuffle"]
+        assert ds["regime"].encoding["complevel"] == 1
+    work.remove()
