@@ -354,6 +354,7 @@ class AdaptivePlan(ScenePlan):
                 work.reuse(self.spec.name, key, self.expected(self._list_length(key)))
         self._active: dict[tuple[int, ...], _Plane] = {}
         self._here: bool | None = None  # the simulator is cached (compute_here)
+        self._unsaved: tuple[str, dict] | None = None  # the last plane (keep)
         self.finished_points = reused * int(np.prod(self.spec.plane_shape))
         return len(keys), reused, self.finished_points
 
@@ -579,10 +580,27 @@ class AdaptivePlan(ScenePlan):
         fields["verify_inferred"] = np.int64(summary.inferred)
         fields["verify_sampled"] = np.int64(summary.sampled)
         fields["verify_agree"] = np.int64(summary.agree)
-        work.save(self.spec.name, self.plane_key(pl.sweep, self._axes), fields)
+        key = self.plane_key(pl.sweep, self._axes)
+        if self._missing or len(self._active) > 1:
+            work.save(self.spec.name, key, fields)
+        else:  # the last plane: saved only if the run stops before its file is written
+            self._unsaved = (key, fields)
         self._last = (pl.sweep, fields)  # the writer reads the last plane from here
         self.finished_points += ref.n_points
         del self._active[pl.sweep]
+
+    def keep(self, work) -> None:
+        """Save the plane only memory holds (the run's last, :meth:`_finish`): the run
+        stopped before its result file was written (:func:`study.run.run_study`).
+
+        A finished run writes it from memory and then removes the work folder, so it
+        is not saved first (its 10-50 MB cost more than the netCDF file). Had the
+        client been killed meanwhile, its saved point lists still hold every
+        simulated point: the rerun refines the plane again from them, computing none.
+        """
+        unsaved, self._unsaved = getattr(self, "_unsaved", None), None
+        if unsaved is not None:
+            work.save(self.spec.name, *unsaved)
 
     def _where(self, pl: _Plane) -> str:
         return f"study: {self.spec.name}{list(pl.sweep) if pl.sweep else ''}"

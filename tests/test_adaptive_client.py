@@ -125,3 +125,39 @@ def test_the_file_holds_the_work_folder_values_with_its_encoding(
         assert enc["zlib"] and enc["complevel"] == 1 and not enc["shuffle"]
         assert ds["regime"].encoding["complevel"] == 1
     work.remove()
+
+
+@pytest.mark.cluster
+def test_a_plane_never_saved_is_refined_again_from_its_point_lists(
+    tmp_path, cluster_client, monkeypatch
+):
+    """The run's last plane is written from memory, not saved first (AdaptivePlan.keep
+    saves it only when the run stops before the file is written). Without its file (a
+    client killed during the write), the rerun answers the refinement from the saved
+    point lists: no point list computed, the same file."""
+    import study.run as run_module
+    from study.errors import StudyInterrupted
+
+    path, out = tmp_path / "here.toml", tmp_path / "here.nc"
+    path.write_text(ADAPTIVE, encoding="utf-8")
+    study = Study.from_toml(path)
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    with monkeypatch.context() as m:
+        m.setattr(run_module, "_assemble", interrupted)
+        with pytest.raises(StudyInterrupted):
+            run_study(study, out, client=cluster_client, progress=False, stream=io.StringIO())
+    work = tmp_path / "here.nc.work"
+    planes = sorted(work.glob("*/*-plane-*.npz"))
+    assert len(planes) == 1  # kept when the write did not happen
+    want = {k: v for k, v in np.load(planes[0]).items() if not k.startswith("_")}
+    planes[0].unlink()  # as if the client had been killed before keeping it
+    log = io.StringIO()
+    run_study(study, out, client=cluster_client, progress=False, stream=log)
+    assert re.search(r" 0 point lists computed \(0 by the client\)", log.getvalue()), log.getvalue()
+    assert not work.exists()
+    with xr.open_dataset(out) as ds:
+        for k in KEYS + ("slip_amplitude", "cycles"):
+            np.testing.assert_array_equal(ds[k].values, want[k].T, err_msg=k)
