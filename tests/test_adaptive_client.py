@@ -12,6 +12,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 import xarray as xr
+from test_work_folder_faults import _kept_work
 
 from study import Study, run_study
 from study.adaptive import LOCAL_POINTS, AdaptivePlan
@@ -93,23 +94,11 @@ def test_the_file_holds_the_work_folder_values_with_its_encoding(
     """The result file (zlib level 1, no shuffle for an adaptive map: study.netcdf
     COMPRESSION) read back with xarray equals the result assembled in memory from the
     same work folder, every variable to the bit."""
-    import study.run as run_module
     from study.chunks import plan
-    from study.errors import StudyInterrupted
     from study.netcdf import result_tree, write_result
     from study.store import WorkDir
 
-    path, out = tmp_path / "here.toml", tmp_path / "here.nc"
-    path.write_text(ADAPTIVE, encoding="utf-8")
-    study = Study.from_toml(path)
-
-    def interrupted(*args, **kwargs):
-        raise KeyboardInterrupt
-
-    with monkeypatch.context() as m:  # every unit computed and saved, nothing written
-        m.setattr(run_module, "_assemble", interrupted)
-        with pytest.raises(StudyInterrupted):
-            run_study(study, out, client=cluster_client, progress=False, stream=io.StringIO())
+    study, out = _computed_not_written(tmp_path, cluster_client, monkeypatch)
     work = WorkDir(out)
     plans = plan(study)
     for p in plans:
@@ -135,20 +124,7 @@ def test_a_plane_never_saved_is_refined_again_from_its_point_lists(
     saves it only when the run stops before the file is written). Without its file (a
     client killed during the write), the rerun answers the refinement from the saved
     point lists: no point list computed, the same file."""
-    import study.run as run_module
-    from study.errors import StudyInterrupted
-
-    path, out = tmp_path / "here.toml", tmp_path / "here.nc"
-    path.write_text(ADAPTIVE, encoding="utf-8")
-    study = Study.from_toml(path)
-
-    def interrupted(*args, **kwargs):
-        raise KeyboardInterrupt
-
-    with monkeypatch.context() as m:
-        m.setattr(run_module, "_assemble", interrupted)
-        with pytest.raises(StudyInterrupted):
-            run_study(study, out, client=cluster_client, progress=False, stream=io.StringIO())
+    study, out = _computed_not_written(tmp_path, cluster_client, monkeypatch)
     work = tmp_path / "here.nc.work"
     planes = sorted(work.glob("*/*-plane-*.npz"))
     assert len(planes) == 1  # kept when the write did not happen
@@ -161,3 +137,13 @@ def test_a_plane_never_saved_is_refined_again_from_its_point_lists(
     with xr.open_dataset(out) as ds:
         for k in KEYS + ("slip_amplitude", "cycles"):
             np.testing.assert_array_equal(ds[k].values, want[k].T, err_msg=k)
+
+
+def _computed_not_written(tmp_path, client, monkeypatch) -> tuple[Study, object]:
+    """The study :data:`ADAPTIVE` computed to ``here.nc``, every unit saved in the work
+    folder, the result file not written (Ctrl-C at its assembly; a clean run first)."""
+    path, out = tmp_path / "here.toml", tmp_path / "here.nc"
+    path.write_text(ADAPTIVE, encoding="utf-8")
+    study = Study.from_toml(path)
+    _kept_work(study, out, client, monkeypatch)
+    return study, out
