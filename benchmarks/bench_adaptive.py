@@ -41,6 +41,14 @@ points), ``--no-dense`` skips the dense grids:
 
     python benchmarks/bench_adaptive.py --cluster --size 1000x500 --scenes fig04:gamma1_kappa1
 
+``--code DIR`` (e.g. ``/work/main``) adds the adaptive study with the refinement
+of that checkout's ``tasks/adaptive.py``, no point list computed by the client and
+zlib level 4 with shuffle (as before they changed), and ``--repeat N`` runs each
+adaptive study N times, alternating, keeping the least wall and CPU seconds (the
+load of other users comes and goes):
+
+    python benchmarks/bench_adaptive.py --cluster --code /work/main --repeat 3
+
 ``--replay``: the refinement alone on the ``--cluster`` scenes, replayed on the
 dense grid's fields (each point's regime, flags and ``cycles`` from the dense
 grid, computed once in this process and cached in ``--cache``; no simulation,
@@ -196,12 +204,34 @@ def _cpu(client) -> float:
 BEFORE = {"seed_lists": False, "min_list": 64}
 
 
+def _before_patch() -> list[tuple[object, str, object]]:
+    from study.adaptive import AdaptivePlan
+
+    return [(AdaptivePlan, name, value) for name, value in BEFORE.items()]
+
+
+def _code_patch(code: Path) -> list[tuple[object, str, object]]:
+    """``--code DIR``: the adaptive study with the refinement of another checkout (e.g.
+    ``/work/main``), no point lists computed by the client, zlib level 4 with shuffle."""
+    import study.adaptive
+    import study.netcdf
+
+    old = _module(code, "tasks/adaptive.py")
+    return [
+        (study.adaptive, "StreamRefinement", old.StreamRefinement),
+        (study.adaptive.AdaptivePlan, "local_points", 0),
+        (study.adaptive.AdaptivePlan, "nc_shuffle", True),
+        (study.netcdf, "COMPRESSION", {"zlib": True, "complevel": 4, "shuffle": True}),
+    ]
+
+
 def _run(
-    text: str, folder: Path, client, barriers: bool = False, before: bool = False
+    text: str, folder: Path, client, barriers: bool = False, patch: list | None = None
 ) -> tuple[float, dict, str]:
     """Wall seconds, regime and simulated arrays (and attributes, and ``cpu``: the CPU
     seconds of this process and the workers), and the log of one study run
-    (``client`` None: as ``study run`` would, threads of this process)."""
+    (``client`` None: as ``study run`` would, threads of this process); ``patch``:
+    ``(object, attribute, value)`` set for this run only (:data:`BEFORE`, --code)."""
     import io
 
     import xarray as xr
@@ -213,11 +243,10 @@ def _run(
     path.write_text(text, encoding="utf-8")
     out = folder / f"bench-{time.monotonic_ns()}.nc"
     log = io.StringIO()
-    AdaptivePlan.barriers = barriers
-    defaults = {name: getattr(AdaptivePlan, name) for name in BEFORE}
-    if before:
-        for name, value in BEFORE.items():
-            setattr(AdaptivePlan, name, value)
+    patch = [(AdaptivePlan, "barriers", barriers), *(patch or [])]
+    saved = [(obj, name, getattr(obj, name)) for obj, name, _ in patch]
+    for obj, name, value in patch:
+        setattr(obj, name, value)
     try:
         cpu, own = _cpu(client), time.process_time()
         t = time.perf_counter()
@@ -225,9 +254,8 @@ def _run(
         seconds = time.perf_counter() - t
         cpu, own = _cpu(client) - cpu, time.process_time() - own
     finally:
-        AdaptivePlan.barriers = False
-        for name, value in defaults.items():
-            setattr(AdaptivePlan, name, value)
+        for obj, name, value in reversed(saved):
+            setattr(obj, name, value)
     with xr.open_dataset(out) as ds:
         arrays = {k: ds[k].values for k in ("regime", "simulated") if k in ds}
         arrays["attrs"] = dict(ds.attrs)
@@ -235,6 +263,17 @@ def _run(
     arrays["client_cpu"] = own  # this process: the client (and the scheduler's thread)
     out.unlink()
     return seconds, arrays, log.getvalue()
+
+
+def _best(runs: list[tuple[float, dict, str]]) -> tuple[float, dict, str]:
+    """Of repeated runs of one study (``--repeat``): the least wall seconds, and the
+    least CPU seconds and client CPU seconds (each over the runs), with the arrays and
+    log of the fastest run."""
+    fastest = min(runs, key=lambda run: run[0])
+    arrays = dict(fastest[1])
+    arrays["cpu"] = min(run[1]["cpu"] for run in runs)
+    arrays["client_cpu"] = min(run[1]["client_cpu"] for run in runs)
+    return fastest[0], arrays, fastest[2]
 
 
 def cluster_main(args, n_r: int, n_beta: int) -> int:
@@ -279,10 +318,20 @@ def cluster_main(args, n_r: int, n_beta: int) -> int:
             "| CPU ratio | labels equal to dense | verification |"
         )
         print("|" + "---|" * 14)
+        befores = []  # (label, patch) run just before the current study: the same load
+        if args.before:
+            befores.append(("before", _before_patch()))
+        if args.code is not None:
+            befores.append((f"{args.code}", _code_patch(args.code)))
         for sc in scenes:
-            if args.before:  # just before the current study: the same load
-                before = _run(text(sc, (n_r, n_beta), mode), folder, client, before=True)
-            sec, arr, log = _run(text(sc, (n_r, n_beta), mode), folder, client)
+            runs: dict[str, list] = {label: [] for label, _ in [*befores, ("", None)]}
+            for _ in range(args.repeat):  # alternating: a change of load hits all alike
+                for label, patch in [*befores, ("", None)]:
+                    runs[label].append(
+                        _run(text(sc, (n_r, n_beta), mode), folder, client, patch=patch)
+                    )
+            earlier = [(label, _best(runs[label])) for label, _ in befores]
+            sec, arr, log = _best(runs[""])
             at = arr["attrs"]
             lists = sum(int(m) for m in re.findall(r"(\d+) point lists computed", log))
             levels = json.loads(at["adaptive_waves_per_plane"])[0]
@@ -298,13 +347,12 @@ def cluster_main(args, n_r: int, n_beta: int) -> int:
                 equal = f"{percent(same, n, 4)} ({n - same} differ)"
             print(
                 f"| {sc['name']} | {n_r * n_beta:,} | {frac:.2f} | {levels} | {lists} "
-                f"| {sec:.1f} | {dense_s} | {ratio} | {arr['cpu']:.1f} "
+                f"| {sec:.2f} | {dense_s} | {ratio} | {arr['cpu']:.2f} "
                 f"| {arr['client_cpu']:.2f} | {dense_cpu} "
                 f"| {cpu_ratio} | {equal} | {verify} |",
                 flush=True,
             )
-            if args.before:
-                b_sec, b_arr, b_log = before
+            for label, (b_sec, b_arr, b_log) in earlier:
                 b_lists = sum(int(m) for m in re.findall(r"(\d+) point lists computed", b_log))
                 same = np.array_equal(b_arr["regime"], arr["regime"]) and np.array_equal(
                     b_arr["simulated"], arr["simulated"]
@@ -314,8 +362,8 @@ def cluster_main(args, n_r: int, n_beta: int) -> int:
                     b_ratio = f"{d_sec / b_sec:.1f}"
                     b_cpu_ratio = f"{d_arr['cpu'] / b_arr['cpu']:.1f}"
                 print(
-                    f"| {sc['name']}, before | | | | {b_lists} | {b_sec:.1f} | | {b_ratio} "
-                    f"| {b_arr['cpu']:.1f} | {b_arr['client_cpu']:.2f} | | {b_cpu_ratio} "
+                    f"| {sc['name']}, {label} | | | | {b_lists} | {b_sec:.2f} | | {b_ratio} "
+                    f"| {b_arr['cpu']:.2f} | {b_arr['client_cpu']:.2f} | | {b_cpu_ratio} "
                     f"| same map: {same} | |",
                     flush=True,
                 )
@@ -364,8 +412,7 @@ def dense_fields(sc: dict, n_r: int, n_beta: int, cache: Path, fidelity: str):
 def replay_main(args, n_r: int, n_beta: int) -> int:
     """The refinement of each ``--cluster`` scene replayed on its dense grid's fields."""
     from analysis.adaptive import closed_form_hint
-    from study.adaptive import VERIFY_SEED
-    from tasks.adaptive import DEFAULT_VERIFY_MIN, StreamRefinement
+    from tasks.stream import StreamRefinement
 
     print(
         f"refinement replayed on the dense grid's fields, {n_r} x {n_beta}, fidelity "
@@ -380,31 +427,63 @@ def replay_main(args, n_r: int, n_beta: int) -> int:
     print("|" + "---|" * 9)
     for sc in cluster_scenes(args.scenes):
         scene, r, beta, dense = dense_fields(sc, n_r, n_beta, args.cache, args.fidelity)
-        t = time.process_time()
         hint = None if args.hint == "none" else closed_form_hint(scene, r, beta, args.hint)
-        layout = {k: (str(v.dtype), 0) for k, v in dense.items()}
-        ref = StreamRefinement((n_r, n_beta), args.coarse_step, hint, fields=layout)
-        while (idx := ref.take(64)).size:
-            ij = np.unravel_index(idx, ref.shape)
-            ref.accept(idx, {k: v[ij] for k, v in dense.items()})
-        sample = ref.verification(0.005, DEFAULT_VERIFY_MIN, VERIFY_SEED)
-        ij = np.unravel_index(sample, ref.shape)
-        v = ref.accept_verification(sample, {k: f[ij] for k, f in dense.items()})
-        out = ref.result()
-        cpu = time.process_time() - t
-        sim = out["simulated"]
-        cycles = dense["cycles"].astype(float)
-        share = cycles[sim].sum() / cycles.sum()
-        differ = out["regime"] != dense["regime"]
-        n = sim.size
-        print(
-            f"| {sc['name']} | {n:,} | {100 * sim.mean():.2f} | {100 * share:.2f} "
-            f"| {1 / share:.1f} | {percent(n - int(differ.sum()), n, 4)} "
-            f"({int(differ.sum())} differ) | {int((differ & (dense['regime'] >= 0)).sum())} "
-            f"| {v.agree} / {v.sampled} | {cpu:.2f} |",
-            flush=True,
-        )
+        runs = {"": StreamRefinement}
+        if args.code is not None:
+            runs = {", before": _module(args.code, "tasks/adaptive.py").StreamRefinement} | runs
+        maps = {}
+        for label, cls in runs.items():
+            out, v, cpu = _replay(cls, (n_r, n_beta), args.coarse_step, hint, dense)
+            maps[label] = out
+            sim = out["simulated"]
+            cycles = dense["cycles"].astype(float)
+            share = cycles[sim].sum() / cycles.sum()
+            differ = out["regime"] != dense["regime"]
+            n = sim.size
+            print(
+                f"| {sc['name']}{label} | {n:,} | {100 * sim.mean():.2f} | {100 * share:.2f} "
+                f"| {1 / share:.1f} | {percent(n - int(differ.sum()), n, 4)} "
+                f"({int(differ.sum())} differ) | {int((differ & (dense['regime'] >= 0)).sum())} "
+                f"| {v.agree} / {v.sampled} | {cpu:.3f} |",
+                flush=True,
+            )
+        if len(maps) > 1:
+            a, b = maps.values()
+            same = all(np.array_equal(a[k], b[k]) for k in a)
+            print(f"| {sc['name']}: same map (every field, simulated, verification) | {same} |")
     return 0
+
+
+def _replay(cls, shape, coarse_step, hint, dense):
+    """One refinement (class ``cls``) on the dense fields, point lists of 64: its result,
+    verification summary and CPU seconds (the hint excluded)."""
+    from study.adaptive import VERIFY_SEED
+    from tasks.adaptive import DEFAULT_VERIFY_MIN
+
+    t = time.process_time()
+    layout = {k: (str(v.dtype), 0) for k, v in dense.items()}
+    ref = cls(shape, coarse_step, hint, fields=layout)
+    while (idx := ref.take(64)).size:
+        ij = np.unravel_index(idx, ref.shape)
+        ref.accept(idx, {k: v[ij] for k, v in dense.items()})
+    sample = ref.verification(0.005, DEFAULT_VERIFY_MIN, VERIFY_SEED)
+    ij = np.unravel_index(sample, ref.shape)
+    v = ref.accept_verification(sample, {k: f[ij] for k, f in dense.items()})
+    out = ref.result()
+    out["levels"] = np.asarray(ref.level_sizes())
+    return out, v, time.process_time() - t
+
+
+def _module(code: Path, path: str):
+    """The module ``path`` of another checkout ``code`` (e.g. ``/work/main``), loaded under
+    a name of its own (its imports come from this checkout)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(f"before_{Path(path).stem}", code / path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # its dataclasses look their module up
+    spec.loader.exec_module(module)
+    return module
 
 
 def example_main(args) -> int:
@@ -457,11 +536,23 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-dense", action="store_true", help="--cluster: adaptive studies only")
     ap.add_argument("--barriers", action="store_true", help="--cluster: the old waves too")
     ap.add_argument(
+        "--repeat",
+        type=int,
+        default=1,
+        help="--cluster: adaptive studies run N times each (alternating), the best kept",
+    )
+    ap.add_argument(
         "--before",
         action="store_true",
         help="--cluster: also the adaptive study without corner seeds, lists of 64",
     )
     ap.add_argument("--example", type=int, default=0, help="time the CLI on the example N times")
+    ap.add_argument(
+        "--code",
+        type=Path,
+        help="--replay: also the refinement of this checkout (e.g. /work/main); --cluster: "
+        "also the study with it, no lists computed by the client, zlib 4; same run",
+    )
     args = ap.parse_args(argv)
     n_r, n_beta = (int(x) for x in args.size.lower().split("x"))
     if args.example:

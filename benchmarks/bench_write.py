@@ -13,6 +13,12 @@ every scene's Dataset built first and the whole tree written by one
 ``xarray.DataTree.to_netcdf`` (then the same fill), measured for N up to
 ``--baseline-max`` scenes (it grows superlinearly: 600 scenes took 218 s).
 Printed: a Markdown table with write seconds, seconds per scene and peak RSS.
+
+``--encoding FILE``: the per-point variables of a result file written again with
+netCDF4 (same dims and chunks) under each compression setting; the CPU seconds
+of the writes (best of 3) and the file size (:data:`study.netcdf.COMPRESSION`):
+
+    .venv/bin/python benchmarks/bench_write.py --encoding adaptive.nc
 """
 
 from __future__ import annotations
@@ -128,11 +134,58 @@ def run(n: int, how: str, where: Path) -> dict:
     return json.loads(proc.stdout.strip().splitlines()[-1])
 
 
+#: ``--encoding``: the settings compared (the first: before level 1).
+ENCODINGS = {
+    "zlib 4, shuffle": {"zlib": True, "complevel": 4, "shuffle": True},
+    "zlib 4": {"zlib": True, "complevel": 4, "shuffle": False},
+    "zlib 1, shuffle": {"zlib": True, "complevel": 1, "shuffle": True},
+    "zlib 1": {"zlib": True, "complevel": 1, "shuffle": False},
+    "none": {"zlib": False},
+}
+
+
+def encoding_main(path: Path) -> None:
+    """Rewrite the per-point variables of ``path`` under each of :data:`ENCODINGS`."""
+    import netCDF4
+
+    with netCDF4.Dataset(path) as src:
+        src.set_auto_maskandscale(False)
+        dims = {d: len(v) for d, v in src.dimensions.items()}
+        per_point = {
+            k: (v[...], v.dimensions, v.dtype, v.chunking())
+            for k, v in src.variables.items()
+            if v.ndim >= 2 or (v.ndim == 1 and v.dimensions[0] == "point")
+        }
+    print(f"{path.name}: {len(per_point)} per-point variables, dims {dims}")
+    print("| encoding | write CPU s | file MB |")
+    print("|---|---:|---:|")
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "e.nc"
+        for label, enc in ENCODINGS.items():
+            best = float("inf")
+            for _ in range(3):
+                t = time.process_time()
+                with netCDF4.Dataset(out, "w") as nc:
+                    for d, n in dims.items():
+                        nc.createDimension(d, n)
+                    for k, (a, vdims, dt, chunks) in per_point.items():
+                        chunks = None if chunks == "contiguous" else chunks
+                        var = nc.createVariable(k, dt, vdims, chunksizes=chunks, **enc)
+                        var.set_auto_maskandscale(False)
+                        var[...] = a
+                best = min(best, time.process_time() - t)
+            print(f"| {label} | {best:.3f} | {out.stat().st_size / 1e6:.2f} |", flush=True)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scenes", type=int, nargs="+", default=[10, 100, 1000])
     ap.add_argument("--baseline-max", type=int, default=100)
+    ap.add_argument("--encoding", type=Path, help="a result file: compression settings")
     args = ap.parse_args()
+    if args.encoding is not None:
+        encoding_main(args.encoding)
+        return
     print(
         f"machine: {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}"
     )

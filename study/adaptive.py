@@ -1,6 +1,6 @@
 """``mode = "adaptive"``: a grid scene simulated by refinement without barriers.
 
-The refinement logic is :class:`tasks.adaptive.StreamRefinement` (pure
+The refinement logic is :class:`tasks.stream.StreamRefinement` (pure
 numerics): a cell is split as soon as its corners are known. This plan hands
 out its ready points as units of work (:mod:`study.chunks` describes the
 interface every plan shares): point lists of about ``task_seconds`` of work
@@ -53,11 +53,11 @@ from study.verify import Expected
 from tasks.adaptive import (
     ADAPTIVE_FIELDS,
     DEFAULT_VERIFY_MIN,
-    StreamRefinement,
     VerificationSummary,
     disagreement_upper_bound,
 )
 from tasks.seeds import grid_neighbours, grid_offsets
+from tasks.stream import StreamRefinement
 
 #: Seed of the verification sample (fixed: a rerun draws the same sample).
 VERIFY_SEED = 0
@@ -78,6 +78,11 @@ MIN_LIST = 256
 #: Solved points (nearest first, :func:`tasks.seeds.grid_neighbours`) whose orbits are
 #: sent with a point list to seed each of its points (one contact, warm starts on).
 GIVEN_PER_POINT = 2
+#: A point list of at most this many points is computed in the client's thread
+#: (:meth:`AdaptivePlan.compute_here`): at the end of a refinement, boundaries are
+#: followed by chains of lists of a few points, each waiting for the one before, and
+#: a round trip through the cluster (about 10 ms) costs ten times their computing.
+LOCAL_POINTS = 16
 #: Fraction of the points an adaptive scene is expected to simulate (planning only).
 ADAPTIVE_SIMULATED_FRACTION = 0.05
 
@@ -172,8 +177,10 @@ class _Plane:
     arrived: list = field(default_factory=list)  # (idx, arrays) not yet given to ``ref``
     hint_due: bool = False  # the closed-form hint is computed at the first result
     inferred: bool = False  # the inferred points are filled (during the verification)
+    handed: bool = False  # a point list was handed out since the last result arrived
     orbits: _Orbits | None = None  # solved orbits that seed new point lists (warm starts)
     batches: int = 0
+    here: int = 0  # point lists computed by the client (AdaptivePlan.compute_here)
     reused: int = 0  # points answered from saved point lists
     computed: int = 0
     shown: float = field(default_factory=time.monotonic)
@@ -196,6 +203,11 @@ class AdaptivePlan(ScenePlan):
     seed_lists: bool = True
     #: Fewest points of a list cut smaller than the chunk target (:data:`MIN_LIST`).
     min_list: int = MIN_LIST
+    #: Largest point list computed in the client's thread (:meth:`compute_here`; 0: none).
+    local_points: int = LOCAL_POINTS
+    #: No byte shuffle in the netCDF file (:data:`study.netcdf.COMPRESSION`): inferred
+    #: points repeat their cell's corner, which deflate finds better unshuffled.
+    nc_shuffle: bool = False
 
     @classmethod
     def build(cls, spec: SceneSpec, study: Study) -> AdaptivePlan:
@@ -341,6 +353,8 @@ class AdaptivePlan(ScenePlan):
             if key not in keys:  # a point list: its fields, dtypes and length now
                 work.reuse(self.spec.name, key, self.expected(self._list_length(key)))
         self._active: dict[tuple[int, ...], _Plane] = {}
+        self._here: bool | None = None  # the simulator is cached (compute_here)
+        self._unsaved: tuple[str, dict] | None = None  # the last plane (keep)
         self.finished_points = reused * int(np.prod(self.spec.plane_shape))
         return len(keys), reused, self.finished_points
 
@@ -369,11 +383,13 @@ class AdaptivePlan(ScenePlan):
             few = len(pl.outstanding) < PARTIAL_BELOW or self.barriers
             if pl.todo.size >= size or (pl.todo.size and few):
                 idx, pl.todo = pl.todo[:size], pl.todo[size:]
+                pl.handed = True
                 return self._unit(pl, np.sort(idx))
             if pl.todo.size or pl.outstanding:
-                if pl.phase == "verify" and not pl.todo.size and not pl.inferred:
+                if pl.phase == "verify" and not (pl.todo.size or pl.inferred or pl.handed):
                     # the inferred points' fields (accept_verification compares them) are
-                    # filled while the sample computes, not after: refinement is done
+                    # filled while the sample computes, not after: refinement is done; not
+                    # before the point lists just handed out are submitted (pl.handed)
                     pl.ref._fill_inferred()
                     pl.inferred = True
                 return WAIT
@@ -437,12 +453,28 @@ class AdaptivePlan(ScenePlan):
     def task(self, unit: PointList, axes=None) -> dict:
         return unit.task
 
+    def compute_here(self, unit: PointList) -> bool:
+        """Whether the client computes this point list itself (:mod:`study.drive`): at most
+        :attr:`local_points` points of one contact (whose simulator releases the GIL), and
+        the simulator in numba's on-disk cache (the client loads it, about 0.2 s once;
+        it never compiles it, e.g. on the login node of a cluster)."""
+        if unit.n_points > self.local_points or contacts.is_multi(self.spec.structure):
+            return False
+        if self._here is None:
+            from tasks import numba_cache
+
+            self._here = numba_cache.is_compiled()
+        if self._here:
+            self._active[unit.sweep].here += 1
+        return self._here
+
     def accept(self, unit: PointList, arrays: dict[str, np.ndarray], work) -> None:
         """Hand a point list's results (saved with its indices by :mod:`study.drive`,
         :attr:`PointList.saved_with`) to the refinement or the verification sample."""
         pl = self._active[unit.sweep]
         pl.outstanding.discard(unit.key)
         pl.computed += 1
+        pl.handed = False
         if pl.orbits is not None and "final" in arrays:
             pl.orbits.add(unit.idx, arrays["final"])
         if unit.phase == "verify":
@@ -538,7 +570,8 @@ class AdaptivePlan(ScenePlan):
             f"{self._where(pl)}: {n_sim:,} of {ref.n_points:,} points simulated "
             f"({100 * n_sim / ref.n_points:.2f} %, verification included) in "
             f"{len(ref.level_sizes())} levels, {time.perf_counter() - pl.t0:.1f} s; "
-            f"{pl.computed} point lists computed, {pl.reused:,} saved points reused; "
+            f"{pl.computed} point lists computed ({pl.here} by the client), "
+            f"{pl.reused:,} saved points reused; "
             f"{summary.line()}",
             always=True,
         )
@@ -547,10 +580,27 @@ class AdaptivePlan(ScenePlan):
         fields["verify_inferred"] = np.int64(summary.inferred)
         fields["verify_sampled"] = np.int64(summary.sampled)
         fields["verify_agree"] = np.int64(summary.agree)
-        work.save(self.spec.name, self.plane_key(pl.sweep, self._axes), fields)
+        key = self.plane_key(pl.sweep, self._axes)
+        if self._missing or len(self._active) > 1:
+            work.save(self.spec.name, key, fields)
+        else:  # the last plane: saved only if the run stops before its file is written
+            self._unsaved = (key, fields)
         self._last = (pl.sweep, fields)  # the writer reads the last plane from here
         self.finished_points += ref.n_points
         del self._active[pl.sweep]
+
+    def keep(self, work) -> None:
+        """Save the plane only memory holds (the run's last, :meth:`_finish`): the run
+        stopped before its result file was written (:func:`study.run.run_study`).
+
+        A finished run writes it from memory and then removes the work folder, so it
+        is not saved first (its 10-50 MB cost more than the netCDF file). Had the
+        client been killed meanwhile, its saved point lists still hold every
+        simulated point: the rerun refines the plane again from them, computing none.
+        """
+        unsaved, self._unsaved = getattr(self, "_unsaved", None), None
+        if unsaved is not None:
+            work.save(self.spec.name, *unsaved)
 
     def _where(self, pl: _Plane) -> str:
         return f"study: {self.spec.name}{list(pl.sweep) if pl.sweep else ''}"

@@ -71,6 +71,7 @@ class Driven:
 
     saved: int = 0
     compute_seconds: float = 0.0
+    here: int = 0  #: units computed in the client's thread (:meth:`_Window.here`)
 
 
 def _failure(unit, exc: BaseException, retries: int, where: str) -> StudyFailed:
@@ -138,9 +139,26 @@ class _Window:
                     break
                 if unit is WAIT:
                     break
-                batch.append((p, unit))
+                if not self.here(p, unit):
+                    batch.append((p, unit))
         self.progress()
         self.submit(batch)
+
+    def here(self, p: ScenePlan, unit) -> bool:
+        """Compute a unit the plan says is cheaper here than a round trip through the
+        cluster (``compute_here``: a few points of an adaptive plane, which its
+        refinement waits for); True once its result is handed over. A unit that raises
+        here goes to the cluster (its retries, its one-line failure)."""
+        ask = getattr(p, "compute_here", None)
+        if ask is None or not ask(unit):
+            return False
+        try:
+            arrays = compute_chunk(p.task(unit))
+        except Exception:  # noqa: BLE001 - the cluster computes it, and reports
+            return False
+        self.done.here += 1
+        self.take(p, unit, arrays)
+        return True
 
     def submit(self, batch: list[tuple[ScenePlan, object]], suffix: str = "") -> None:
         if not batch:
@@ -165,10 +183,14 @@ class _Window:
     def arrived(self, fut, arrays) -> None:
         """Queue one result for saving (:mod:`study.saving`), hand it to its plan, count it."""
         _, p, unit = self.inflight.pop(fut.key)
+        fut.release()
+        self.take(p, unit, arrays)
+
+    def take(self, p: ScenePlan, unit, arrays) -> None:
+        """Queue a unit's result for saving, hand it to its plan, count it."""
         extra = getattr(unit, "saved_with", None)  # e.g. an adaptive point list's indices
         saved = {k: v for k, v in arrays.items() if k not in TRANSIENT}  # for the plan only
         self.saver.put(p, unit, saved if extra is None else saved | extra)
-        fut.release()
         seconds = float(arrays["seconds"])
         self.done.compute_seconds += seconds
         before = p.finished_points

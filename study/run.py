@@ -317,6 +317,8 @@ def run_study(
             f"cannot use {where}: {os_cause(exc)}; {older_result_note(output)}"
         ) from None
     finally:
+        if not finished:
+            _keep(plans, work)
         _release(work, finished)
     wall = time.perf_counter() - t0
     if output is None:
@@ -480,6 +482,17 @@ def _interrupted(work, output, done: Driven, survey: Survey | None) -> str:
         f"interrupted: {kept:,}{of} chunks are saved in {work.path}; "
         f"{older}; rerun the same command to resume"
     )
+
+
+def _keep(plans: list[ScenePlan], work) -> None:
+    """Save what a plan holds in memory only (an adaptive scene's last plane,
+    ``keep``) when the run stops before its result file is written; its point lists
+    are saved, so a failure here loses no simulated point."""
+    for p in plans:
+        keep = getattr(p, "keep", None)
+        if keep is not None:
+            with suppress(BaseException):  # the run's own exception is the one to report
+                keep(work)
 
 
 def _release(work, finished: bool) -> None:

@@ -37,9 +37,10 @@ Guarantees (in grid steps of the requested resolution):
 
 The logic is pure numerics: the classification of a batch of points is injected
 (:func:`refine`), or the caller drives the refinement itself, without barriers
-(:class:`StreamRefinement`: :meth:`~StreamRefinement.take` gives points ready to
-simulate, :meth:`~StreamRefinement.accept` takes results of any handed-out points
-in any order, e.g. as Dask tasks finish) or wave by wave (:class:`Refinement`:
+(:class:`tasks.stream.StreamRefinement`: ``take`` gives points ready to simulate,
+``accept`` takes results of any handed-out points in any order, e.g. as Dask
+tasks finish; cells that complete together are examined as arrays,
+:mod:`tasks.cells`) or wave by wave (:class:`Refinement`:
 :meth:`~Refinement.wave` gives the points of the next level, all of whose results
 go to :meth:`~Refinement.accept` before the next wave). Both end at the same
 cells, simulated points and labels. No Dask, no files.
@@ -52,7 +53,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from tasks import regimes
+from tasks import cells, regimes
 from tasks.result import FIELDS, MASS_FIELDS
 
 #: Default coarsest spacing, in grid steps: the smallest feature the map is sure to find.
@@ -407,21 +408,7 @@ class Refinement:
         boxes = self._leaf_boxes()
         if self._last_new is None or not boxes.shape[0]:
             return
-        pi, pj = self._last_new
-        i0, i1, j0, j1 = (c[:, None] for c in boxes.T)
-        if boxes.shape[0] * pi.size <= _BROADCAST_LIMIT:  # few new points: compare directly
-            inside = (i0 <= pi) & (pi <= i1) & (j0 <= pj) & (pj <= j1)
-            count = inside.any(axis=1)
-        else:  # many: a summed-area table of the new points, on their own rows and columns
-            ui, ci = np.unique(pi, return_inverse=True)
-            uj, cj = np.unique(pj, return_inverse=True)
-            s = np.zeros((ui.size + 1, uj.size + 1), dtype=np.int32)
-            s[1 + ci, 1 + cj] = 1
-            s = s.cumsum(0, dtype=np.int32).cumsum(1, dtype=np.int32)
-            i0, i1, j0, j1 = boxes.T  # a box's rows [a, b) and columns [c, d) of the table
-            a, b = np.searchsorted(ui, i0, "left"), np.searchsorted(ui, i1, "right")
-            c, d = np.searchsorted(uj, j0, "left"), np.searchsorted(uj, j1, "right")
-            count = s[b, d] - s[a, d] - s[b, c] + s[a, c]
+        count = self._leaves_hit(boxes)
         reopen = np.zeros(boxes.shape[0], dtype=bool)
         for n in np.flatnonzero(count):
             box = tuple(int(v) for v in boxes[n])
@@ -430,6 +417,24 @@ class Refinement:
                 reopen[n] = True
         self._leaves = boxes[~reopen]
         self._last_new = None
+
+    def _leaves_hit(self, boxes: np.ndarray) -> np.ndarray:
+        """Which of the cells ``boxes`` hold a point of the last accepted results (nonzero)."""
+        pi, pj = self._last_new
+        i0, i1, j0, j1 = (c[:, None] for c in boxes.T)
+        if boxes.shape[0] * pi.size <= _BROADCAST_LIMIT:  # few new points: compare directly
+            inside = (i0 <= pi) & (pi <= i1) & (j0 <= pj) & (pj <= j1)
+            return inside.any(axis=1)
+        # many: a summed-area table of the new points, on their own rows and columns
+        ui, ci = np.unique(pi, return_inverse=True)
+        uj, cj = np.unique(pj, return_inverse=True)
+        s = np.zeros((ui.size + 1, uj.size + 1), dtype=np.int32)
+        s[1 + ci, 1 + cj] = 1
+        s = s.cumsum(0, dtype=np.int32).cumsum(1, dtype=np.int32)
+        i0, i1, j0, j1 = boxes.T  # a box's rows [a, b) and columns [c, d) of the table
+        a, b = np.searchsorted(ui, i0, "left"), np.searchsorted(ui, i1, "right")
+        c, d = np.searchsorted(uj, j0, "left"), np.searchsorted(uj, j1, "right")
+        return s[b, d] - s[a, d] - s[b, c] + s[a, c]
 
     def _leaf_boxes(self) -> np.ndarray:
         if self._leaves_new:
@@ -488,23 +493,17 @@ class Refinement:
         todo = ~self.simulated
         if self._filled or not todo.any():
             return
-        src_i = np.full(self.shape, -1, dtype=np.int64)
-        src_j = np.full(self.shape, -1, dtype=np.int64)
         boxes = self._leaf_boxes()
         boxes = boxes[np.lexsort(boxes.T[::-1])]  # one order whatever the arrival order
-        for i0, i1, j0, j1 in boxes.tolist():  # the nearer corner along each axis
-            mi, mj = (i0 + i1) // 2 + 1, (j0 + j1) // 2 + 1
-            src_i[i0:mi, j0 : j1 + 1] = i0
-            src_i[mi : i1 + 1, j0 : j1 + 1] = i1
-            src_j[i0 : i1 + 1, j0:mj] = j0
-            src_j[i0 : i1 + 1, mj : j1 + 1] = j1
-        dst = np.nonzero(todo)
-        src = (src_i[dst], src_j[dst])
+        dst = np.flatnonzero(todo)  # from the nearer corner along each axis of its cell
+        src = cells.nearest_corner_sources(boxes, dst, self.shape)
         if (src[0] < 0).any():  # cannot happen: uniform cells and unit cells tile the map
             raise RuntimeError("adaptive map: a point lies in no refinement cell")
-        for arr in self.fields.values():
-            arr[dst] = arr[src]
-        self.key[dst] = self.key[src]
+        src = src[0] * self.shape[1] + src[1]
+        n = self.n_points
+        for arr in (*self.fields.values(), self.key):  # flat views: one take per field
+            flat = arr.reshape(n, *arr.shape[2:])
+            flat[dst] = flat[src]
         self._filled = True
 
     def result(self) -> dict[str, np.ndarray]:
@@ -515,131 +514,6 @@ class Refinement:
         out["simulated"] = self.simulated.copy()
         out["verification"] = self.verification_flag.copy()
         return out
-
-
-Box = tuple[int, int, int, int]
-
-
-class StreamRefinement(Refinement):
-    """A :class:`Refinement` without barriers: cells split as soon as their corners arrive.
-
-    The caller takes the points ready to simulate (:meth:`take`), in batches of
-    any size and as many batches in flight as it likes, and hands back results
-    point list by point list in any order (:meth:`accept`). A cell is examined
-    when its last corner arrives; a uniform cell (a leaf) that later receives a
-    disagreeing point is examined again, as in :meth:`Refinement.wave`.
-
-    The result does not depend on the arrival order: a cell is split only when
-    the points known so far prove it unsettled (:meth:`Refinement._settled`; more
-    points can only keep it unsettled) or it is hinted; a 1 x 2 strip asks for
-    a middle only when the points that end up simulated require it
-    (:meth:`Refinement._strip_middles`: a disagreeing edge, or a middle across
-    that disagrees; a strip settled earlier is examined again when a point
-    arrives on it); and refinement ends only when every unsplit cell is
-    settled given every simulated point. Both this and the wave refinement
-    therefore end at the least such set of splits and middles: the same
-    simulated points, the same labels (``tests/test_adaptive.py`` checks
-    shuffled orders against the waves).
-    """
-
-    def __init__(self, *args: object, **kwargs: object) -> None:
-        super().__init__(*args, **kwargs)
-        first, self._first = np.sort(self._first), None
-        self._ready: list[int] = first.tolist()  # emitted, not handed out yet
-        self._requested = np.zeros(self.n_points, dtype=bool)
-        self._requested[first] = True
-        self._waiting: dict[int, list[Box]] = {}  # point -> cells waiting for it
-        self._missing: dict[Box, int] = {}  # cell -> corners not yet simulated
-        self._depth: dict[Box, int] = {}  # cell -> halvings from its coarse cell
-        self._level = np.full(self.n_points, np.iinfo(np.int64).max, dtype=np.int64)
-        cells, self._active = self._active, []
-        self._evaluate([c for c in cells if self._wait(c, 0)])
-
-    def wave(self) -> np.ndarray:  # pragma: no cover - guard
-        raise TypeError("StreamRefinement: use take() and accept(), not wave()")
-
-    @property
-    def ready(self) -> int:
-        """Points ready to simulate, not handed out yet."""
-        return len(self._ready)
-
-    @property
-    def done(self) -> bool:
-        """Every requested point arrived and no cell is left to examine."""
-        return not self._ready and not self._missing
-
-    def take(self, n: int | None = None) -> np.ndarray:
-        """Up to ``n`` (all if None) ready points to simulate, as flat indices (sorted)."""
-        n = len(self._ready) if n is None else max(0, int(n))
-        out, self._ready = self._ready[:n], self._ready[n:]
-        return np.sort(np.asarray(out, dtype=np.int64))
-
-    def accept(self, idx: np.ndarray, results: Mapping[str, np.ndarray]) -> None:
-        """Store the results of points ``idx`` (any handed-out points, in any order) and
-        examine every cell they complete or contradict; new points become ready."""
-        idx = np.asarray(idx, dtype=np.int64).ravel()
-        super().accept(idx, results)
-        self._reopen_leaves()  # leaves holding a new disagreeing point: in self._active
-        queue, self._active = self._active, []
-        for f in idx.tolist():
-            for box in self._waiting.pop(f, ()):
-                self._missing[box] -= 1
-                if not self._missing[box]:
-                    del self._missing[box]
-                    queue.append(box)
-        self._evaluate(queue)
-
-    def level_sizes(self) -> list[int]:
-        """Points of the refinement per level: a point's level is the smallest depth (in
-        halvings from the coarse lattice) of a cell it is a corner of. Unlike the batches,
-        this does not depend on the arrival order (the cells are those of the waves)."""
-        flat = self._level[self._level < np.iinfo(np.int64).max]
-        return np.bincount(flat).tolist() if flat.size else []
-
-    def _wait(self, box: Box, depth: int, middles: list[tuple[int, int]] | None = None) -> bool:
-        """Register a cell for its corners not simulated yet (requesting them); True if none.
-
-        ``middles``: instead of the corners, the middles a strip asks for
-        (:meth:`Refinement._strip_middles`), at the level of a halving of the strip."""
-        self._depth[box] = depth
-        i0, i1, j0, j1 = box
-        n_b = self.shape[1]
-        if middles is None:  # flat indices
-            corners = {i0 * n_b + j0, i0 * n_b + j1, i1 * n_b + j0, i1 * n_b + j1}
-            at = depth
-        else:
-            corners, at = {i * n_b + j for i, j in middles}, depth + 1
-        level, simulated = self._level, self.simulated.reshape(-1)
-        for f in corners:
-            if at < level[f]:
-                level[f] = at
-        missing = [f for f in corners if not simulated[f]]
-        if not missing:
-            return True
-        self._missing[box] = len(missing)
-        for f in missing:
-            self._waiting.setdefault(f, []).append(box)
-            if not self._requested[f]:
-                self._requested[f] = True
-                self._ready.append(f)
-        return False
-
-    def _evaluate(self, queue: list[Box]) -> None:
-        """Examine cells whose corners are all simulated: a leaf, or split (as in :meth:`wave`)."""
-        while queue:
-            box = queue.pop()
-            if self._settled(box) and not self._hinted(box):
-                self._leaves_new.append(box)
-                continue
-            i0, i1, j0, j1 = box
-            if i1 - i0 <= 1 and j1 - j0 <= 1:
-                continue  # every point of the cell is a simulated corner
-            depth = self._depth[box] + 1
-            if self._strip_points(box):  # a strip asks for middles, is not split
-                if self._wait(box, depth - 1, self._strip_middles(box)):
-                    queue.append(box)  # its middles were simulated meanwhile
-                continue
-            queue.extend(c for c in self._children(box) if self._wait(c, depth))
 
 
 @dataclass
@@ -680,7 +554,7 @@ def refine(
     trailing axis of ``dof`` masses). ``verify_fraction = 0`` and
     ``verify_min = 0`` skip the verification sample. ``barriers = True`` runs
     the wave refinement (:meth:`Refinement.wave`, one batch per level), else
-    :class:`StreamRefinement` in batches of at most ``batch_points``; the
+    :class:`tasks.stream.StreamRefinement` in batches of at most ``batch_points``; the
     labels are the same.
     """
     if barriers:
@@ -688,6 +562,8 @@ def refine(
         while (idx := ref.wave()).size:
             ref.accept(idx, classify_batch(*np.unravel_index(idx, ref.shape)))
     else:
+        from tasks.stream import StreamRefinement
+
         ref = StreamRefinement(shape, coarse_step, hint, key_fields, dof)
         while (idx := ref.take(batch_points)).size:
             ref.accept(idx, classify_batch(*np.unravel_index(idx, ref.shape)))
@@ -735,7 +611,7 @@ def adaptive_map(
         object with the FIELDS as attributes; default :func:`tasks.classify`.
     barriers : bool
         Refine wave by wave (the old path, kept for comparison) instead of
-        point list by point list (:class:`StreamRefinement`); same labels.
+        point list by point list (:class:`tasks.stream.StreamRefinement`); same labels.
     """
     if classify_fn is None:
         from tasks.classifier import classify as classify_fn

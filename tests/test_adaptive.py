@@ -27,8 +27,9 @@ from analysis.adaptive import adaptive_map, closed_form_hint, curve_hint
 from study import Study
 from study.errors import StudyError, StudyInterrupted
 from tasks import Scene, classify, regimes
-from tasks.adaptive import Refinement, StreamRefinement, coarse_nodes, refine
+from tasks.adaptive import Refinement, coarse_nodes, refine
 from tasks.result import FIELDS
+from tasks.stream import StreamRefinement
 
 N_R, N_B = 256, 128
 

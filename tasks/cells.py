@@ -1,0 +1,156 @@
+"""Refinement cells examined many at a time: numpy over whole waves of cells.
+
+The adaptive map (:mod:`tasks.adaptive`) examines cells ``(i0, i1, j0, j1)`` (grid
+indices of their corners along r and beta, both ends included) as their
+corners arrive. :class:`tasks.adaptive.Refinement` decides cell by cell; these
+functions take the same decisions for an array of cells at once (shape
+``(k, 4)``, int64), so that the client's share of an adaptive study does not
+grow with a Python loop per cell. ``key`` is the flat array of the points'
+key (regime and flags, :meth:`tasks.adaptive.Refinement._key_of`) and ``sim``
+the flat array of simulated points; flat indices are ``i * n_beta + j``.
+
+Each function is the vectorised form of one per-cell method of
+:class:`~tasks.adaptive.Refinement` (named in its docstring), and
+``tests/test_adaptive_cells.py`` checks them against those methods on random
+cells and keys. No Dask, no files.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def box_points(boxes: np.ndarray, n_b: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Every point of every cell, cell after cell (rows of r, then beta).
+
+    Returns
+    -------
+    start : (k,) int64
+        Offset of each cell's first point in ``flat``.
+    owner : (n,) int64
+        The cell of each point (nondecreasing).
+    flat : (n,) int64
+        Flat indices of the points.
+    """
+    i0, i1, j0, j1 = boxes.T
+    w = j1 - j0 + 1
+    area = (i1 - i0 + 1) * w
+    start = np.cumsum(area) - area
+    owner = np.repeat(np.arange(boxes.shape[0]), area)
+    t = np.arange(int(area.sum()), dtype=np.int64) - start[owner]
+    wo = w[owner]
+    return start, owner, (i0[owner] + t // wo) * n_b + j0[owner] + t % wo
+
+
+def uniform(boxes: np.ndarray, key: np.ndarray, sim: np.ndarray, n_b: int) -> np.ndarray:
+    """Cells whose simulated points all share one key (or have none):
+    :meth:`~tasks.adaptive.Refinement._uniform`."""
+    if not boxes.shape[0]:
+        return np.zeros(0, dtype=bool)
+    start, _, flat = box_points(boxes, n_b)
+    s, k = sim[flat], key[flat]
+    big = np.iinfo(np.int64).max
+    lo = np.minimum.reduceat(np.where(s, k, big), start)
+    hi = np.maximum.reduceat(np.where(s, k, -big), start)
+    return hi <= lo
+
+
+def strips(boxes: np.ndarray) -> np.ndarray:
+    """Cells one step wide and two long (either way): the strips of
+    :meth:`~tasks.adaptive.Refinement._strip_points`."""
+    wide, tall = boxes[:, 1] - boxes[:, 0], boxes[:, 3] - boxes[:, 2]
+    return ((wide == 1) & (tall == 2)) | ((wide == 2) & (tall == 1))
+
+
+def strip_edges(boxes: np.ndarray, n_b: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The two long edges of strips as (end, middle, end) flat indices, each ``(k, 2)``
+    (edge 0 at ``i0`` or ``j0``): :meth:`~tasks.adaptive.Refinement._strip_points`."""
+    i0, i1, j0, j1 = (c[:, None] for c in boxes.T)
+    along_b = (j1 - j0) == 2  # a 1 x 2 strip: long edges at i0 and i1, along beta
+    edge = np.array([[0, 1]])
+    i = np.where(along_b, np.where(edge == 0, i0, i1), i0)
+    j = np.where(along_b, j0, np.where(edge == 0, j0, j1))
+    di, dj = np.where(along_b, 0, 1), np.where(along_b, 1, 0)
+    a = i * n_b + j
+    return a, a + di * n_b + dj, a + 2 * (di * n_b + dj)
+
+
+def resolved_strips(
+    a: np.ndarray, m: np.ndarray, b: np.ndarray, key: np.ndarray, sim: np.ndarray
+) -> np.ndarray:
+    """Strips (their :func:`strip_edges`) resolved to one step:
+    :meth:`~tasks.adaptive.Refinement._resolved_strip`, (a) or (b)."""
+    ka, kb, km = key[a], key[b], key[m]
+    sm = sim[m]
+    edge_uniform = (ka == kb) & ~(sm & (km != ka))
+    across = sim[m[:, ::-1]] & (key[m[:, ::-1]] == ka)  # the other edge's middle agrees
+    edge_known = sm | ((ka == kb) & across)
+    return edge_uniform.all(axis=1) | edge_known.all(axis=1)
+
+
+def strip_middles(
+    a: np.ndarray, m: np.ndarray, b: np.ndarray, key: np.ndarray, sim: np.ndarray
+) -> np.ndarray:
+    """Which middles (``(k, 2)`` mask over the edges) unresolved strips ask for:
+    :meth:`~tasks.adaptive.Refinement._strip_middles`."""
+    sm = sim[m]
+    first = (key[a] != key[b]) & ~sm
+    across = sim[m[:, ::-1]] & (key[m[:, ::-1]] == key[a])
+    second = ~sm & ~across
+    return np.where(first.any(axis=1)[:, None], first, second)
+
+
+def halves(boxes: np.ndarray, key2d: np.ndarray) -> np.ndarray:
+    """The two halves of each cell (``(2k, 4)``: both halves of cell 0, then of cell 1,
+    ...), split along one axis as :meth:`~tasks.adaptive.Refinement._split_axes` and
+    :meth:`~tasks.adaptive.Refinement._children` do. Cells must not be unit cells."""
+    i0, i1, j0, j1 = boxes.T
+    along_r = (key2d[i0, j0] != key2d[i1, j0]) | (key2d[i0, j1] != key2d[i1, j1])
+    along_b = (key2d[i0, j0] != key2d[i0, j1]) | (key2d[i1, j0] != key2d[i1, j1])
+    wide, tall = i1 - i0, j1 - j0
+    along_r = np.where(along_r == along_b, wide >= tall, along_r)
+    split_r = (wide > 1) & (along_r | (tall <= 1))
+    im, jm = (i0 + i1) // 2, (j0 + j1) // 2
+    first = np.stack([i0, np.where(split_r, im, i1), j0, np.where(split_r, j1, jm)], axis=1)
+    second = np.stack([np.where(split_r, im, i0), i1, np.where(split_r, j0, jm), j1], axis=1)
+    return np.stack([first, second], axis=1).reshape(-1, 4)
+
+
+def corners(boxes: np.ndarray, n_b: int) -> np.ndarray:
+    """Flat indices of each cell's four corners, ``(k, 4)`` (repeated for a cell of width 0)."""
+    i0, i1, j0, j1 = boxes.T
+    return np.stack([i0 * n_b + j0, i0 * n_b + j1, i1 * n_b + j0, i1 * n_b + j1], axis=1)
+
+
+def summed_table(mask: np.ndarray) -> np.ndarray:
+    """Summed-area table of a 2-D mask, one row and column of zeros in front."""
+    out = np.zeros((mask.shape[0] + 1, mask.shape[1] + 1), dtype=np.int64)
+    out[1:, 1:] = mask.cumsum(0, dtype=np.int64).cumsum(1)
+    return out
+
+
+def count_in(table: np.ndarray, boxes: np.ndarray) -> np.ndarray:
+    """Points of the mask of :func:`summed_table` in each cell (ends included)."""
+    i0, i1, j0, j1 = boxes.T
+    return table[i1 + 1, j1 + 1] - table[i0, j1 + 1] - table[i1 + 1, j0] + table[i0, j0]
+
+
+def nearest_corner_sources(
+    boxes: np.ndarray, todo: np.ndarray, shape: tuple[int, int]
+) -> tuple[np.ndarray, np.ndarray]:
+    """For the flat points ``todo``, the nearer corner along each axis of the last cell
+    (in the order of ``boxes``) that contains it: the source of
+    :meth:`~tasks.adaptive.Refinement._fill_inferred` (-1 where no cell contains it)."""
+    n_r, n_b = shape
+    last = np.full(n_r * n_b, -1, dtype=np.int64)
+    if boxes.shape[0]:
+        _, owner, flat = box_points(boxes, n_b)
+        np.maximum.at(last, flat, owner)
+    cell = last[todo]
+    i, j = np.divmod(todo, n_b)
+    if (cell < 0).any():
+        return np.full(todo.size, -1, dtype=np.int64), np.full(todo.size, -1, dtype=np.int64)
+    i0, i1, j0, j1 = boxes[cell].T
+    src_i = np.where(i < (i0 + i1) // 2 + 1, i0, i1)
+    src_j = np.where(j < (j0 + j1) // 2 + 1, j0, j1)
+    return src_i, src_j
