@@ -153,9 +153,9 @@ def cache_dir() -> str:
 
 
 def is_compiled() -> bool:
-    """Whether the simulator's entry point (``run_points_seeded``, the one
-    :func:`tasks.classify` and :func:`compile_simulator` call) is in the on-disk
-    cache, for this source.
+    """Whether the simulator's entry point (``run_points_given``, the one
+    :func:`tasks.classify`, :func:`tasks.classifier.classify_given` and
+    :func:`compile_simulator` call) is in the on-disk cache, for this source.
 
     Reads numba's cache index (a stale index, of an edited source, counts as
     absent). When the index cannot be read, answers False (compiling is then
@@ -164,7 +164,7 @@ def is_compiled() -> bool:
     from tasks import kernel
 
     try:
-        return bool(kernel.run_points_seeded._cache._cache_file._load_index())
+        return bool(kernel.run_points_given._cache._cache_file._load_index())
     except Exception:  # numba internals differ: announce rather than stay silent
         return False
 

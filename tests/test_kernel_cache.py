@@ -136,6 +136,30 @@ def test_classify_announces_a_first_compile_once_and_a_cached_one_never(monkeypa
     assert capsys.readouterr().err == ""
 
 
+def test_is_compiled_reads_the_entry_point_that_classify_calls(monkeypatch):
+    """is_compiled() reads the cache index of the kernel function classify calls (else a
+    cached simulator is announced as compiling at every run, and an adaptive study's
+    client never computes its short point lists, study.adaptive)."""
+    from types import SimpleNamespace
+
+    from tasks import Scene, classify, kernel
+
+    real, called = kernel.run_points_given, []
+
+    def spy(*args):
+        called.append(True)
+        return real(*args)
+
+    monkeypatch.setattr(kernel, "run_points_given", spy)
+    classify(Scene("ground", 2), 0.8, 0.3)
+    assert called
+    for index, want in (({}, False), ({("sig",): "entry"}, True)):
+        cache_file = SimpleNamespace(_load_index=lambda index=index: index)
+        fake = SimpleNamespace(_cache=SimpleNamespace(_cache_file=cache_file))
+        monkeypatch.setattr(kernel, "run_points_given", fake)
+        assert numba_cache.is_compiled() is want
+
+
 def test_a_fresh_cache_folder_is_detected_as_cold(tmp_path):
     """is_compiled() reads the index of the keyed folder: an empty base has none."""
     env = {k: v for k, v in os.environ.items() if not k.startswith("NUMBA_")}
