@@ -29,14 +29,18 @@ R_SLOW = np.linspace(0.02, 2.5, 250)[69]
 BETA_SLOW = np.linspace(0.0, 1.5, 100)[46:54]
 
 
-def test_along_extrapolates_only_beyond_j_on_one_line():
-    r = np.array([1.0, 1.0, 1.0, 1.1, 1.0])
-    beta = np.array([0.3, 0.2, 0.1, 0.1, 0.6])
-    assert abs(_along(r, beta, 0, 1, 2) - 1.0) < 1e-12
-    assert _along(r, beta, 0, 1, 3) == 0.0  # not on one line
-    assert _along(r, beta, 1, 0, 2) == 0.0  # j not between i and k (interpolation)
-    assert _along(r, beta, 4, 0, 1) == 0.0  # too far beyond j (t = 3)
-    assert _along(r, beta, 0, 1, 1) == 0.0  # j and k the same point
+def test_along_extrapolates_beyond_j_and_interpolates_between_j_and_k():
+    p = {"i": (1.0, 0.3), "j": (1.0, 0.2), "k": (1.0, 0.1), "off": (1.1, 0.1), "far": (1.0, 0.6)}
+
+    def along(i, j, k):
+        return _along(*p[i], *p[j], *p[k])
+
+    assert abs(along("i", "j", "k") - 1.0) < 1e-12  # extrapolation: X_j + (X_j - X_k)
+    assert abs(along("j", "i", "k") + 0.5) < 1e-12  # midpoint: (X_i + X_k) / 2
+    assert along("i", "j", "off") == 0.0  # not on one line
+    assert along("far", "i", "j") == 0.0  # too far beyond j (t = 3)
+    assert along("k", "i", "j") == 0.0  # beyond k on the other side (t = -2)
+    assert along("i", "j", "j") == 0.0  # j and k the same point
 
 
 def test_secant_seed_settles_where_the_copied_seed_fails():
@@ -62,7 +66,8 @@ def test_secant_seed_settles_where_the_copied_seed_fails():
     all_final = np.vstack([final, np.zeros((1, 2 * n + 2))])
     pred = np.empty(2 * n + 2)
     seedable = np.array([True, True, False])
-    assert secant_seed(r, beta, 2, 0, seeds, seedable, all_final, args, settings, pred)
+    given = np.zeros((0, 2 * n + 4))
+    assert secant_seed(r, beta, 2, 0, seeds, seedable, all_final, given, args, settings, pred)
     np.testing.assert_array_equal(pred[2 * n :], final[1, 2 * n :])  # j's phase and section
     assert np.max(np.abs(pred[: 2 * n] - final[1, : 2 * n])) > 0.0
     ok, used = kernel.warm_point(r[2], beta[2], args, settings, out_i, final_i, pred, keep, kept)

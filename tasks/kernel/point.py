@@ -583,7 +583,7 @@ def run_points_design(r, beta, scene, settings, samples):
 def run_points_seeded(r, beta, scene, settings, samples, seeds):
     """:func:`run_points_given` with no given seeds: ``seeds`` lists earlier points of
     the call only. Returns ``(out, final, design)``."""
-    given = np.empty((0, 2 * scene[0].shape[0] + 2))
+    given = np.empty((0, 2 * scene[0].shape[0] + 4))
     return run_points_given(r, beta, scene, settings, samples, seeds, given)
 
 
@@ -600,9 +600,10 @@ def run_points_given(r, beta, scene, settings, samples, seeds, given):
     start (:func:`warm_point`). An entry ``-2 - k`` names row ``k`` of ``given``
     instead: the ``final`` row (section state, phase, section phase) of a moving
     period-1 orbit solved outside the call (e.g. a corner of an adaptive map's
-    cell, :mod:`tasks.seeds`), which seeds the point as an earlier point would.
+    cell, :mod:`tasks.seeds`), then its r and beta (``2 n + 4`` columns), which
+    seeds the point as an earlier point would.
     Where that warm start fails, up to ``SECANT_TRIES`` secant predictions from
-    two solved points of the call on a line through the point seed it
+    two solved points (of the call or given) on a line through the point seed it
     (:func:`tasks.kernel.secant.secant_seed`: the fixed point moves fast but
     smoothly near a resonance of the held system, where the copied orbit is
     too far for Newton's method and the held start needs hundreds of periods).
@@ -660,7 +661,7 @@ def run_points_given(r, beta, scene, settings, samples, seeds, given):
             # the copied seed failed: secant predictions along lines (secant.py)
             for nth in range(SECANT_TRIES if spent > 0 else 0):
                 if accepted or not secant_seed(
-                    r, beta, i, nth, seeds, seedable, final, scene, settings, pred
+                    r, beta, i, nth, seeds, seedable, final, given, scene, settings, pred
                 ):
                     break
                 accepted, more = warm_point(

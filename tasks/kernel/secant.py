@@ -1,14 +1,22 @@
-"""A warm start's seed extrapolated from two solved neighbours on a line (a secant predictor).
+"""A warm start's seed from two solved points on a line through the point (a secant predictor).
 
 Near a resonance of the held system a Floquet multiplier of the stick-slip
 orbit approaches 1 (critical slowing down): the fixed point of the Poincare
 map moves fast with (r, beta), the neighbour's orbit is too far for Newton's
 method (the step crosses a change of the event pattern, or exceeds the trust
 region), and the held start then needs hundreds to thousands of periods. The
-fixed point still moves smoothly along a grid line: two solved points ``j``
-and ``k`` on the line through the point ``i``, ``j`` between them, give the
-secant prediction ``X_i = X_j + t (X_j - X_k)`` with ``t = |p_i - p_j| /
-|p_j - p_k|``, second-order accurate where the copied seed ``X_j`` is first.
+fixed point still moves smoothly along a line of points: two solved points
+``j`` and ``k`` on the line through the point ``i`` give the secant prediction
+``X_i = X_j + t (X_j - X_k)``, with ``p_i - p_j = t (p_j - p_k)`` in the (r,
+beta) plane: an extrapolation (``0 < t <= SECANT_REACH``, ``j`` between ``i``
+and ``k``) or an interpolation (``-1 < t < 0``, ``i`` between them: e.g. the
+midpoint of a cell's edge between two solved corners), second-order accurate
+where the copied seed ``X_j`` is first.
+
+A point is named by an index ``q``: ``q >= 0`` a point of the call (``r[q]``,
+``beta[q]``, ``final[q]``), ``q <= -2`` row ``-2 - q`` of ``given`` (a moving
+period-1 orbit solved outside the call: ``final`` row, then its r and beta,
+:func:`tasks.kernel.point.run_points_given`).
 
 The prediction is only a seed: :func:`tasks.kernel.point.warm_point` accepts
 the orbit it leads to by the same tests as any warm start, so neither the
@@ -32,15 +40,32 @@ SECANT_REACH = 2.0
 SECANT_SINE = 1e-9
 
 
+@njit(**LEAF)
+def _where(q, r, beta, given, n):
+    """``(r, beta)`` of the point ``q`` (of the call, or given: module docstring)."""
+    if q >= 0:
+        return r[q], beta[q]
+    return given[-2 - q, 2 * n + 2], given[-2 - q, 2 * n + 3]
+
+
+@njit(**LEAF)
+def _solved(q, i, seedable, given):
+    """Whether ``q`` names a solved moving period-1 orbit: an earlier point of the call
+    that can seed, or a given one."""
+    if q >= 0:
+        return q < i and seedable[q]
+    return q <= -2 and -2 - q < given.shape[0]
+
+
 @njit(cache=True)
-def _along(r, beta, i, j, k):
+def _along(ri, bi, rj, bj, rk, bk):
     """``t`` with ``p_i - p_j = t (p_j - p_k)`` in the (r, beta) plane, or 0.0 where
-    the three points are not on one line with ``j`` between ``i`` and ``k`` (or
-    ``t`` exceeds ``SECANT_REACH``)."""
-    ar = r[i] - r[j]
-    ab = beta[i] - beta[j]
-    br = r[j] - r[k]
-    bb = beta[j] - beta[k]
+    the three points are not on one line, or ``t`` is outside ``(-1, 0)`` and
+    ``(0, SECANT_REACH]`` (module docstring)."""
+    ar = ri - rj
+    ab = bi - bj
+    br = rj - rk
+    bb = bj - bk
     nb = br * br + bb * bb
     na = ar * ar + ab * ab
     if nb == 0.0 or na == 0.0:
@@ -48,78 +73,94 @@ def _along(r, beta, i, j, k):
     if abs(ar * bb - ab * br) > SECANT_SINE * math.sqrt(na * nb):
         return 0.0
     t = (ar * br + ab * bb) / nb
-    if not 0.0 < t <= SECANT_REACH:
+    if not (-1.0 < t < 0.0 or 0.0 < t <= SECANT_REACH):
         return 0.0
     return t
 
 
 @njit(**LEAF)
-def _candidate(seeds, idx, c):
-    """The ``c``-th point that may continue a line to point ``idx``: the point before it
-    in the call (``c = 0``: along a grid line or a trace in the call's order), then
-    its candidate seeds (row ``idx`` of ``seeds``, nearest first); -1 where none."""
+def _candidate(seeds, i, q, c):
+    """The ``c``-th point that may lie on a line with ``i`` and ``q`` (``q = i``: the
+    candidates of the pair's first point): the point before ``q`` in the call
+    (``c = 0``: along a grid line or a trace in the call's order), then ``q``'s
+    candidate seeds (row ``q`` of ``seeds``, nearest first, given points among
+    them), then ``i``'s; for a given ``q`` the point before ``i`` and ``i``'s
+    candidates. -1 where none, -2 past the end."""
+    m = seeds.shape[1]
+    row = q if q >= 0 else i
     if c == 0:
-        return idx - 1
-    j = seeds[idx, c - 1]
-    return -1 if j == idx - 1 else j
+        return row - 1 if row >= 1 else -1
+    if c <= m:
+        return seeds[row, c - 1]
+    if q != i and q >= 0 and c <= 2 * m:
+        return seeds[i, c - 1 - m]
+    return -2
 
 
 @njit(cache=True)
-def secant_seed(r, beta, i, nth, seeds, seedable, final, scene, settings, pred):
+def secant_seed(r, beta, i, nth, seeds, seedable, final, given, scene, settings, pred):
     """The ``nth`` (0, 1, ...) secant prediction of point ``i``'s orbit (into ``pred``).
 
-    The pairs ``(j, k)`` are taken in order: ``j`` each point that may continue a
-    line to ``i`` (:func:`_candidate`: the point before it in the call, then its
+    The pairs ``(j, k)`` are taken in order: ``j`` each point that may lie on a
+    line with ``i`` (:func:`_candidate`: the point before it in the call, then its
     candidate seeds of :func:`tasks.seeds.warm_seeds`) that is a solved moving
-    period-1 orbit (``seedable``), ``k`` the first such point for ``j`` that lies
-    on the line through ``i`` and ``j`` beyond ``j`` (:func:`_along`). ``final``
-    rows are (section state, phase, section phase); where ``k``'s section
-    differs from ``j``'s, ``k``'s orbit is carried to ``j``'s section (a part of
-    a period of ``k``'s own motion); the state there must lie in the same kind
-    of phase (stuck or sliding) as ``j``'s.
+    period-1 orbit (:func:`_solved`), ``k`` the first such point for ``j`` on the
+    line through ``i`` and ``j`` (:func:`_along`). Where ``k``'s section differs
+    from ``j``'s, ``k``'s orbit is carried to ``j``'s section (a part of a period
+    of ``k``'s own motion); the state there must lie in the same kind of phase
+    (stuck or sliding) as ``j``'s.
 
     Returns True where ``pred`` holds a prediction (phase and section of ``j``).
     """
+    n = (final.shape[1] - 2) // 2
     found = 0
+    ri, bi = r[i], beta[i]
     for a in range(seeds.shape[1] + 1):
-        j = _candidate(seeds, i, a)
-        if not (0 <= j < i and seedable[j]):
+        j = _candidate(seeds, i, i, a)
+        if not _solved(j, i, seedable, given):
             continue
-        for c in range(seeds.shape[1] + 1):
-            k = _candidate(seeds, j, c)
-            if not (0 <= k < j and seedable[k]):
+        rj, bj = _where(j, r, beta, given, n)
+        for c in range(2 * seeds.shape[1] + 1):
+            k = _candidate(seeds, i, j, c)
+            if k == -2:
+                break
+            if k == j or not _solved(k, i, seedable, given):
                 continue
-            t = _along(r, beta, i, j, k)
+            rk, bk = _where(k, r, beta, given, n)
+            t = _along(ri, bi, rj, bj, rk, bk)
             if t == 0.0:
                 continue
             if found < nth:
                 found += 1
                 break
-            return _predict(r, beta, j, k, t, final, scene, settings, pred)
+            Xj = final[j] if j >= 0 else given[-2 - j, : 2 * n + 2]
+            Xk = final[k] if k >= 0 else given[-2 - k, : 2 * n + 2]
+            return _predict(rk, bk, Xj, Xk, t, scene, settings, pred)
     return False
 
 
 @njit(cache=True)
-def _predict(r, beta, j, k, t, final, scene, settings, pred):
-    """``pred = X_j + t (X_j - X_k)`` at ``j``'s section (:func:`secant_seed`)."""
-    n = (final.shape[1] - 2) // 2
-    mode_j = int(final[j, 2 * n])
-    theta = final[j, 2 * n + 1]
-    Xk = final[k, : 2 * n].copy()
-    theta_k = final[k, 2 * n + 1]
-    mode_k = int(final[k, 2 * n])
+def _predict(rk, bk, Xj, Xk, t, scene, settings, pred):
+    """``pred = X_j + t (X_j - X_k)`` at ``j``'s section (:func:`secant_seed`); ``Xj``,
+    ``Xk``: ``final`` rows, ``(rk, bk)`` the point of ``Xk``."""
+    n = (Xj.shape[0] - 2) // 2
+    mode_j = int(Xj[2 * n])
+    theta = Xj[2 * n + 1]
+    Xs = Xk[: 2 * n].copy()
+    theta_k = Xk[2 * n + 1]
+    mode_k = int(Xk[2 * n])
     if theta_k != theta:
         # k's orbit carried from its section to j's (its own motion: its context)
-        ctx, work, _, _, _ = _context(r[k], beta[k], scene, settings)
+        ctx, work, _, _, _ = _context(rk, bk, scene, settings)
         target = theta if theta > theta_k else theta + TWO_PI
         stats = np.zeros(N_STATS)
-        Xk, mode_k, _ = _advance(Xk, mode_k, theta_k, stats, ctx, work, theta_k, target)
+        Xs, mode_k, _ = _advance(Xs, mode_k, theta_k, stats, ctx, work, theta_k, target)
         if stats[ST_STATUS] != STATUS_OK:
             return False
     if (mode_k == 0) != (mode_j == 0):
         return False
     for q in range(2 * n):
-        pred[q] = final[j, q] + t * (final[j, q] - Xk[q])
+        pred[q] = Xj[q] + t * (Xj[q] - Xs[q])
     pred[2 * n] = mode_j
     pred[2 * n + 1] = theta
     return True
