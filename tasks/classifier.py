@@ -193,7 +193,10 @@ def _classify(scene, r, beta, fidelity, settings, given):
         seeds = warm_seeds(flat_r, flat_beta, float(scene_args[5][-1]), g_r, g_beta)
     else:
         seeds = np.full((flat_r.size, 0), -1, dtype=np.int64)
-    g_final = np.ascontiguousarray(g_final, dtype=np.float64).reshape(-1, 2 * n + 2)
+    g_final = np.asarray(g_final, dtype=np.float64).reshape(-1, 2 * n + 2)
+    if given is not None:  # each given orbit's point after its row (tasks.kernel.secant)
+        g_final = np.column_stack([g_final, np.ravel(g_r), np.ravel(g_beta)])
+    g_final = np.ascontiguousarray(g_final).reshape(-1, 2 * n + 4)
     out, final, design = kernel.run_points_given(
         flat_r, flat_beta, scene_args, first, samples, seeds, g_final
     )

@@ -63,6 +63,7 @@ from tasks.kernel.layout import (
 from tasks.kernel.linsolve import _solve
 from tasks.kernel.orbit import _check_orbit
 from tasks.kernel.outcome import _finish, _no_motion_by_margin, _undetermined
+from tasks.kernel.secant import secant_seed
 from tasks.kernel.shooting import (
     REC_ROWS,
     SETTLE_PHASES,
@@ -86,6 +87,9 @@ from tasks.regimes import (
 HELD_MARGIN_RTOL = 1e-9
 # Newton steps a warm start may take before the point falls back to the held start.
 WARM_NEWTON = 6
+# Secant predictions (:mod:`tasks.kernel.secant`) a point tries where its copied
+# seed failed, before the held start.
+SECANT_TRIES = 2
 # The polish of a converged period-1 orbit (:func:`polish_point`): residual of the
 # Poincare map sought, relative to the motion (far below ``section_rtol``: the fixed
 # point then no longer depends on where the search started), and Newton steps. The
@@ -579,7 +583,7 @@ def run_points_design(r, beta, scene, settings, samples):
 def run_points_seeded(r, beta, scene, settings, samples, seeds):
     """:func:`run_points_given` with no given seeds: ``seeds`` lists earlier points of
     the call only. Returns ``(out, final, design)``."""
-    given = np.empty((0, 2 * scene[0].shape[0] + 2))
+    given = np.empty((0, 2 * scene[0].shape[0] + 4))
     return run_points_given(r, beta, scene, settings, samples, seeds, given)
 
 
@@ -596,7 +600,13 @@ def run_points_given(r, beta, scene, settings, samples, seeds, given):
     start (:func:`warm_point`). An entry ``-2 - k`` names row ``k`` of ``given``
     instead: the ``final`` row (section state, phase, section phase) of a moving
     period-1 orbit solved outside the call (e.g. a corner of an adaptive map's
-    cell, :mod:`tasks.seeds`), which seeds the point as an earlier point would.
+    cell, :mod:`tasks.seeds`), then its r and beta (``2 n + 4`` columns), which
+    seeds the point as an earlier point would.
+    Where that warm start fails, up to ``SECANT_TRIES`` secant predictions from
+    two solved points (of the call or given) on a line through the point seed it
+    (:func:`tasks.kernel.secant.secant_seed`: the fixed point moves fast but
+    smoothly near a resonance of the held system, where the copied orbit is
+    too far for Newton's method and the held start needs hundreds of periods).
     A point the warm start does not settle, or whose orbit then fails the orbit
     invariant, is classified from the held start (:func:`simulate_point`)
     exactly as without warm starts, and its period-1 motion is then polished
@@ -626,6 +636,7 @@ def run_points_given(r, beta, scene, settings, samples, seeds, given):
     keep = np.empty((REC_ROWS, REC_X + 2 * n))  # a shot's verified period, for the check
     kept = np.zeros(1, dtype=np.int64)
     seedable = np.zeros(r.shape[0], dtype=np.bool_)
+    pred = np.empty(2 * n + 2)
     for i in range(r.shape[0]):
         accepted = False
         spent = 0
@@ -647,6 +658,18 @@ def run_points_given(r, beta, scene, settings, samples, seeds, given):
             accepted, spent = warm_point(
                 r[i], beta[i], scene, settings, out[i], final[i], seed, keep, kept
             )
+            # the copied seed failed: secant predictions along lines (secant.py)
+            for nth in range(SECANT_TRIES if spent > 0 else 0):
+                if accepted or not secant_seed(
+                    r, beta, i, nth, seeds, seedable, final, given, scene, settings, pred
+                ):
+                    break
+                accepted, more = warm_point(
+                    r[i], beta[i], scene, settings, out[i], final[i], pred, keep, kept
+                )
+                spent += more
+                if accepted:
+                    out[i, OUT_CYCLES] = spent
             if accepted:
                 rec, nr = _check_orbit(
                     r[i], beta[i], scene, settings, out[i], final[i], keep, kept[0]
