@@ -41,13 +41,13 @@ points), ``--no-dense`` skips the dense grids:
 
     python benchmarks/bench_adaptive.py --cluster --size 1000x500 --scenes fig04:gamma1_kappa1
 
-``--code DIR`` (e.g. ``/work/main``) adds the adaptive study with the refinement
+``--code DIR`` (e.g. ``../main``) adds the adaptive study with the refinement
 of that checkout's ``tasks/adaptive.py``, no point list computed by the client and
 zlib level 4 with shuffle (as before they changed), and ``--repeat N`` runs each
 adaptive study N times, alternating, keeping the least wall and CPU seconds (the
 load of other users comes and goes):
 
-    python benchmarks/bench_adaptive.py --cluster --code /work/main --repeat 3
+    python benchmarks/bench_adaptive.py --cluster --code ../main --repeat 3
 
 ``--replay``: the refinement alone on the ``--cluster`` scenes, replayed on the
 dense grid's fields (each point's regime, flags and ``cycles`` from the dense
@@ -212,7 +212,7 @@ def _before_patch() -> list[tuple[object, str, object]]:
 
 def _code_patch(code: Path) -> list[tuple[object, str, object]]:
     """``--code DIR``: the adaptive study with the refinement of another checkout (e.g.
-    ``/work/main``), no point lists computed by the client, zlib level 4 with shuffle."""
+    ``../main``), no point lists computed by the client, zlib level 4 with shuffle."""
     import study.adaptive
     import study.netcdf
 
@@ -475,7 +475,7 @@ def _replay(cls, shape, coarse_step, hint, dense):
 
 
 def _module(code: Path, path: str):
-    """The module ``path`` of another checkout ``code`` (e.g. ``/work/main``), loaded under
+    """The module ``path`` of another checkout ``code`` (e.g. ``../main``), loaded under
     a name of its own (its imports come from this checkout)."""
     import importlib.util
 
@@ -550,7 +550,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--code",
         type=Path,
-        help="--replay: also the refinement of this checkout (e.g. /work/main); --cluster: "
+        help="--replay: also the refinement of this checkout (e.g. ../main); --cluster: "
         "also the study with it, no lists computed by the client, zlib 4; same run",
     )
     args = ap.parse_args(argv)

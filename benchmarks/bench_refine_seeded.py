@@ -3,7 +3,7 @@
 Run from the repository root::
 
     .venv/bin/python benchmarks/bench_refine_seeded.py --scenes dof3_mass_m2_m3 dof6_ground_m5
-    .venv/bin/python benchmarks/bench_refine_seeded.py --code /work/main  # another checkout
+    .venv/bin/python benchmarks/bench_refine_seeded.py --code ../main  # another checkout
 
 For each scene of ``bench_adaptive.py --cluster`` (``--scenes``, its names), at
 ``--size`` (1000 x 500): the dense grid (``tasks.classify``, warm starts, one
