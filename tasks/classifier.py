@@ -108,8 +108,8 @@ def classify(
         fields agree to about 1e-9 whatever the grouping, ``cycles`` excepted);
         only the first start is seeded. ``warm=False`` runs every point from
         its start alone. ``design=True`` also computes the design quantities
-        (off by default: the design pass replays every orbit once more, about
-        17 % of a warm Fig. 4 point; :mod:`tasks.fidelity`).
+        (off by default: the design pass replays every orbit once more, adding
+        34-47 % to a warm point, docs/benchmarks.md; :mod:`tasks.fidelity`).
 
     Returns
     -------
