@@ -40,8 +40,8 @@ from bench_warm import table  # noqa: E402
 
 from study.adaptive import MIN_LIST, _Orbits  # noqa: E402
 from tasks import Scene, classify  # noqa: E402
-from tasks.adaptive import StreamRefinement  # noqa: E402
 from tasks.classifier import classify_given  # noqa: E402
+from tasks.stream import StreamRefinement  # noqa: E402
 
 #: Fields the refinement needs from a point list.
 KEYS = ("regime", "converged", "start_dependent", "cycles")
