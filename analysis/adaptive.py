@@ -4,8 +4,11 @@ The closed-form boundaries (:func:`analysis.boundaries`) say where a boundary is
 expected; an adaptive map splits every cell they cross down to a few grid steps
 (tasks.adaptive.HINT_CELL), so that a thin feature that follows them (a strip
 at an antiresonance, a peak at a natural frequency) is not lost between coarse
-nodes. They never decide a label: every label of the map comes from a
-simulation (or is inferred from simulated corners that agree).
+nodes, and cuts a cell on the hinted grid line nearest its middle
+(tasks.cells.split_at), so that a boundary where the closed forms put it is
+reached in one or two cuts instead of halvings. They never decide a label:
+every label of the map comes from a simulation (or is inferred from simulated
+corners that agree).
 """
 
 from __future__ import annotations

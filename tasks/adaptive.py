@@ -31,9 +31,12 @@ Guarantees (in grid steps of the requested resolution):
   than the cells around it (a strip or island thinner than ``coarse_step`` lying
   between coarse nodes, or a bump of a boundary narrower than the local cell).
   Closed-form boundaries can be passed as a ``hint`` (points to refine around:
-  cells containing a hinted point are split down to :data:`HINT_CELL` steps even
-  when uniform) but never decide a label. The verification sample
-  (:meth:`Refinement.verification`) estimates the error of the inferred labels.
+  cells holding a hinted point inside, or on an edge longer than
+  :data:`HINT_CELL` steps, are split down to :data:`HINT_CELL` steps even when
+  uniform, and a cell is cut on the hinted grid line nearest its middle rather
+  than at its middle, :func:`tasks.cells.split_at`) but never decide a label.
+  The verification sample (:meth:`Refinement.verification`) estimates the
+  error of the inferred labels.
 
 The logic is pure numerics: the classification of a batch of points is injected
 (:func:`refine`), or the caller drives the refinement itself, without barriers
@@ -63,7 +66,10 @@ DEFAULT_COARSE_STEP = 16
 #: followed to one step like any boundary. Below it only disagreement splits,
 #: so a hint far from any boundary costs no simulation at the finest levels
 #: (measured on Fig. 10a at 1000 x 500: 1 step 7.5 %, 4 steps 4.6 % of the
-#: points simulated, the same agreement with the dense grid).
+#: points simulated, the same agreement with the dense grid). A hinted point on a
+#: cell's edge counts only while that edge is longer than this (its corners are
+#: simulated): cuts at the hint (:func:`tasks.cells.split_at`) put hinted points
+#: on edges.
 HINT_CELL = 4
 #: Largest batch of ready points :func:`refine` classifies at once without barriers.
 DEFAULT_BATCH_POINTS = 256
@@ -225,6 +231,15 @@ class Refinement:
         self.hint = None if hint is None else np.asarray(hint, dtype=bool)
         if self.hint is not None and self.hint.shape != self.shape:
             raise ValueError(f"hint: shape {self.hint.shape} differs from the map's {self.shape}")
+        self._hint_table: np.ndarray | None = None
+
+    @property
+    def hint_table(self) -> np.ndarray | None:
+        """The hint's summed-area table (:func:`tasks.cells.summed_table`), None without a
+        hint; made at first use."""
+        if self.hint is not None and self._hint_table is None:
+            self._hint_table = cells.summed_table(self.hint)
+        return self._hint_table
 
     # ------------------------------------------------------------ waves
     @property
@@ -269,11 +284,13 @@ class Refinement:
         return list(self.levels)
 
     def _children(self, box: tuple[int, int, int, int]) -> list[tuple[int, int, int, int]]:
-        """The halves of a cell along :meth:`_split_axes`."""
+        """The halves of a cell along :meth:`_split_axes`, cut at its middle or, with a
+        hint, at the hinted grid line nearest the middle (:func:`tasks.cells.split_at`)."""
         i0, i1, j0, j1 = box
         split_r, split_b = self._split_axes(box)
-        im = (i0 + i1) // 2 if split_r else None
-        jm = (j0 + j1) // 2 if split_b else None
+        at = int(cells.split_at(np.array([box]), np.array([split_r]), self.hint_table)[0])
+        im = at if split_r else None
+        jm = at if split_b else None
         rs = [(i0, im), (im, i1)] if im is not None else [(i0, i1)]
         bs = [(j0, jm), (jm, j1)] if jm is not None else [(j0, j1)]
         return [(a, b, c, d) for a, b in rs for c, d in bs]
@@ -394,13 +411,22 @@ class Refinement:
         return True
 
     def _hinted(self, box: tuple[int, int, int, int]) -> bool:
-        """The cell holds a hinted point and is larger than :data:`HINT_CELL` steps."""
+        """The cell holds a hinted point off its edges (along an axis of more than one
+        step) and is larger than :data:`HINT_CELL` steps. A hinted point on its edge is
+        on a line a cut put there (:func:`tasks.cells.split_at`) or is held inside the
+        cell beside it (the closed-form hint marks both grid points around its curve)."""
         if self.hint is None:
             return False
         i0, i1, j0, j1 = box
         if i1 - i0 <= HINT_CELL and j1 - j0 <= HINT_CELL:
             return False
-        return bool(self.hint[i0 : i1 + 1, j0 : j1 + 1].any())
+        h = self.hint
+        a, b = (i0 + 1, i1 - 1) if i1 - i0 > 1 else (i0, i1)
+        c, d = (j0 + 1, j1 - 1) if j1 - j0 > 1 else (j0, j1)
+        inside = h[a : b + 1, c : d + 1].any()
+        along_r = i1 - i0 > HINT_CELL and h[i0 + 1 : i1, [j0, j1]].any()
+        along_b = j1 - j0 > HINT_CELL and h[[i0, i1], j0 + 1 : j1].any()
+        return bool(inside or along_r or along_b)
 
     def _reopen_leaves(self) -> None:
         """Leaves (uniform cells) that received new simulated points disagreeing with them are

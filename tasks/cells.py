@@ -100,20 +100,104 @@ def strip_middles(
     return np.where(first.any(axis=1)[:, None], first, second)
 
 
-def halves(boxes: np.ndarray, key2d: np.ndarray) -> np.ndarray:
+def halves(
+    boxes: np.ndarray, key2d: np.ndarray, hint_table: np.ndarray | None = None
+) -> np.ndarray:
     """The two halves of each cell (``(2k, 4)``: both halves of cell 0, then of cell 1,
     ...), split along one axis as :meth:`~tasks.adaptive.Refinement._split_axes` and
-    :meth:`~tasks.adaptive.Refinement._children` do. Cells must not be unit cells."""
+    :meth:`~tasks.adaptive.Refinement._children` do, at :func:`split_at` (the
+    middle, or the hinted line nearest it when ``hint_table``, the hint's
+    :func:`summed_table`, is given). Cells must not be unit cells."""
     i0, i1, j0, j1 = boxes.T
     along_r = (key2d[i0, j0] != key2d[i1, j0]) | (key2d[i0, j1] != key2d[i1, j1])
     along_b = (key2d[i0, j0] != key2d[i0, j1]) | (key2d[i1, j0] != key2d[i1, j1])
     wide, tall = i1 - i0, j1 - j0
     along_r = np.where(along_r == along_b, wide >= tall, along_r)
     split_r = (wide > 1) & (along_r | (tall <= 1))
-    im, jm = (i0 + i1) // 2, (j0 + j1) // 2
+    at = split_at(boxes, split_r, hint_table)
+    im, jm = np.where(split_r, at, i0), np.where(split_r, j0, at)
     first = np.stack([i0, np.where(split_r, im, i1), j0, np.where(split_r, j1, jm)], axis=1)
     second = np.stack([np.where(split_r, im, i0), i1, np.where(split_r, j0, jm), j1], axis=1)
     return np.stack([first, second], axis=1).reshape(-1, 4)
+
+
+def split_at(
+    boxes: np.ndarray, split_r: np.ndarray, hint_table: np.ndarray | None = None
+) -> np.ndarray:
+    """Where each cell is cut across the axis it is split along (r where ``split_r``,
+    else beta): its middle, or, when a hint is given (its :func:`summed_table`), the
+    grid line across the cell nearest the middle that holds a hinted point, strictly
+    inside the cell (the lower one of two as near).
+
+    A hint that follows a boundary (the closed forms) then puts the cut on the
+    boundary at once: the cell that holds the boundary is one or two steps
+    across after one or two cuts instead of after halvings down to it, and
+    the part beside it, uniform, holds the hinted points on its edge only,
+    where they split it (:func:`hinted`) only while that edge is longer than
+    :data:`tasks.adaptive.HINT_CELL`. Labels still come from simulated points
+    only: a cut decides where corners go, never a label.
+    """
+    i0, i1, j0, j1 = boxes.T
+    lo, hi = np.where(split_r, i0, j0), np.where(split_r, i1, j1)
+    mid = (lo + hi) // 2
+    if hint_table is None or not boxes.shape[0]:
+        return mid
+    olo, ohi = np.where(split_r, j0, i0), np.where(split_r, j1, i1)
+
+    def holds(p: np.ndarray, rows: np.ndarray) -> np.ndarray:  # the line at p has a hint
+        r, o0, o1 = split_r[rows], olo[rows], ohi[rows]
+        line = np.stack(
+            [np.where(r, p, o0), np.where(r, p, o1), np.where(r, o0, p), np.where(r, o1, p)]
+        )
+        return count_in(hint_table, line.T) > 0
+
+    at = mid.copy()
+    r = split_r
+    inside = np.stack(  # the lines strictly inside, across the whole cell
+        [np.where(r, i0 + 1, i0), np.where(r, i1 - 1, i1),
+         np.where(r, j0, j0 + 1), np.where(r, j1, j1 - 1)], axis=1
+    )  # fmt: skip
+    todo = np.flatnonzero(count_in(hint_table, inside) > 0)  # a hinted line to find
+    for d in range(int((hi - lo).max(initial=0)) // 2 + 1):  # outwards from the middle
+        for sign in (-1, 1):
+            if not todo.size:
+                return at
+            p = mid[todo] + sign * d
+            ok = (p > lo[todo]) & (p < hi[todo])
+            found = np.zeros(todo.size, dtype=bool)
+            found[ok] = holds(p[ok], todo[ok])
+            at[todo[found]] = p[found]
+            todo = todo[~found]
+    return at
+
+
+def interior(boxes: np.ndarray) -> np.ndarray:
+    """Each cell without its edges, along each axis it spans more than one step of
+    (along an axis of one step or none, the whole cell)."""
+    i0, i1, j0, j1 = boxes.T
+    wide, tall = i1 - i0 > 1, j1 - j0 > 1
+    return np.stack(
+        [np.where(wide, i0 + 1, i0), np.where(wide, i1 - 1, i1),
+         np.where(tall, j0 + 1, j0), np.where(tall, j1 - 1, j1)], axis=1
+    )  # fmt: skip
+
+
+def hinted(boxes: np.ndarray, hint_table: np.ndarray, size: int) -> np.ndarray:
+    """Cells larger than ``size`` steps along an axis that hold a hinted point inside
+    (:func:`interior`) or on an edge longer than ``size`` steps (its corners apart;
+    ``hint_table``: the hint's :func:`summed_table`):
+    :meth:`~tasks.adaptive.Refinement._hinted`."""
+    i0, i1, j0, j1 = boxes.T
+    large = (i1 - i0 > size) | (j1 - j0 > size)
+    found = count_in(hint_table, interior(boxes)) > 0
+    for long_, edge in (
+        (i1 - i0 > size, (i0 + 1, i1 - 1, j0, j0)),
+        (i1 - i0 > size, (i0 + 1, i1 - 1, j1, j1)),
+        (j1 - j0 > size, (i0, i0, j0 + 1, j1 - 1)),
+        (j1 - j0 > size, (i1, i1, j0 + 1, j1 - 1)),
+    ):
+        found |= long_ & (count_in(hint_table, np.stack(edge, axis=1)) > 0)
+    return large & found
 
 
 def corners(boxes: np.ndarray, n_b: int) -> np.ndarray:

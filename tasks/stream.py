@@ -64,10 +64,6 @@ class StreamRefinement(Refinement):
     def wave(self) -> np.ndarray:  # pragma: no cover - guard
         raise TypeError("StreamRefinement: use take() and accept(), not wave()")
 
-    def set_hint(self, hint: np.ndarray | None) -> None:
-        super().set_hint(hint)
-        self._hint_table = None  # its summed-area table, made at first use
-
     @property
     def ready(self) -> int:
         """Points ready to simulate, not handed out yet."""
@@ -147,7 +143,7 @@ class StreamRefinement(Refinement):
             strip = ~leaf & cells.strips(boxes)
             split = ~leaf & ~strip & ~((wide <= 1) & (tall <= 1))  # unit cells: all known
             again_b, again_d = self._ask_middles(boxes[strip], depth[strip], key, sim)
-            halves = cells.halves(boxes[split], self.key)
+            halves = cells.halves(boxes[split], self.key, self.hint_table)
             half_b, half_d = self._wait(halves, np.repeat(depth[split] + 1, 2))
             boxes = np.concatenate([again_b, half_b])
             depth = np.concatenate([again_d, half_d])
@@ -176,10 +172,7 @@ class StreamRefinement(Refinement):
 
     def _hinted_many(self, boxes: np.ndarray) -> np.ndarray:
         """:meth:`Refinement._hinted` of every cell of ``boxes`` (a hint set is fixed)."""
-        if self._hint_table is None:
-            self._hint_table = cells.summed_table(self.hint)
-        large = (boxes[:, 1] - boxes[:, 0] > HINT_CELL) | (boxes[:, 3] - boxes[:, 2] > HINT_CELL)
-        return large & (cells.count_in(self._hint_table, boxes) > 0)
+        return cells.hinted(boxes, self.hint_table, HINT_CELL)
 
     def _reopened(self) -> tuple[np.ndarray, np.ndarray]:
         """Leaves holding a point of the last results that are no longer settled (removed
