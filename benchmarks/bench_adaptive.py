@@ -216,9 +216,8 @@ def _code_patch(code: Path) -> list[tuple[object, str, object]]:
     import study.adaptive
     import study.netcdf
 
-    old = _module(code, "tasks/adaptive.py")
     return [
-        (study.adaptive, "StreamRefinement", old.StreamRefinement),
+        (study.adaptive, "StreamRefinement", _stream_class(code)),
         (study.adaptive.AdaptivePlan, "local_points", 0),
         (study.adaptive.AdaptivePlan, "nc_shuffle", True),
         (study.netcdf, "COMPRESSION", {"zlib": True, "complevel": 4, "shuffle": True}),
@@ -430,7 +429,7 @@ def replay_main(args, n_r: int, n_beta: int) -> int:
         hint = None if args.hint == "none" else closed_form_hint(scene, r, beta, args.hint)
         runs = {"": StreamRefinement}
         if args.code is not None:
-            runs = {", before": _module(args.code, "tasks/adaptive.py").StreamRefinement} | runs
+            runs = {", before": _stream_class(args.code)} | runs
         maps = {}
         for label, cls in runs.items():
             out, v, cpu = _replay(cls, (n_r, n_beta), args.coarse_step, hint, dense)
@@ -472,6 +471,15 @@ def _replay(cls, shape, coarse_step, hint, dense):
     out = ref.result()
     out["levels"] = np.asarray(ref.level_sizes())
     return out, v, time.process_time() - t
+
+
+def _stream_class(code: Path):
+    """The ``StreamRefinement`` of another checkout (``tasks/stream.py``, or
+    ``tasks/adaptive.py`` where it was before it moved); the per-cell helpers it
+    calls (:mod:`tasks.cells`, :class:`tasks.adaptive.Refinement`) come from this one,
+    ``tasks.cells.halves`` cutting at the middle when no hint table is passed."""
+    path = "tasks/stream.py" if (code / "tasks/stream.py").is_file() else "tasks/adaptive.py"
+    return _module(code, path).StreamRefinement
 
 
 def _module(code: Path, path: str):
