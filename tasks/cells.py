@@ -142,32 +142,29 @@ def split_at(
     mid = (lo + hi) // 2
     if hint_table is None or not boxes.shape[0]:
         return mid
-    olo, ohi = np.where(split_r, j0, i0), np.where(split_r, j1, i1)
-
-    def holds(p: np.ndarray, rows: np.ndarray) -> np.ndarray:  # the line at p has a hint
-        r, o0, o1 = split_r[rows], olo[rows], ohi[rows]
-        line = np.stack(
-            [np.where(r, p, o0), np.where(r, p, o1), np.where(r, o0, p), np.where(r, o1, p)]
-        )
-        return count_in(hint_table, line.T) > 0
-
-    at = mid.copy()
     r = split_r
     inside = np.stack(  # the lines strictly inside, across the whole cell
         [np.where(r, i0 + 1, i0), np.where(r, i1 - 1, i1),
          np.where(r, j0, j0 + 1), np.where(r, j1, j1 - 1)], axis=1
     )  # fmt: skip
     todo = np.flatnonzero(count_in(hint_table, inside) > 0)  # a hinted line to find
-    for d in range(int((hi - lo).max(initial=0)) // 2 + 1):  # outwards from the middle
-        for sign in (-1, 1):
-            if not todo.size:
-                return at
-            p = mid[todo] + sign * d
-            ok = (p > lo[todo]) & (p < hi[todo])
-            found = np.zeros(todo.size, dtype=bool)
-            found[ok] = holds(p[ok], todo[ok])
-            at[todo[found]] = p[found]
-            todo = todo[~found]
+    if not todo.size:
+        return mid
+    # candidate lines outwards from the middle: mid, mid - 1, mid + 1, mid - 2, ...
+    half = int((hi[todo] - lo[todo]).max()) // 2 + 1
+    step = np.arange(2 * half) // 2 * np.where(np.arange(2 * half) % 2, 1, -1)
+    p = mid[todo, None] + step[None, :]
+    t = np.broadcast_to(todo[:, None], p.shape)
+    ok = (p > lo[t]) & (p < hi[t])
+    p = np.where(ok, p, mid[t])  # an index inside the grid; masked out below
+    rr, o0, o1 = r[t], np.where(r, j0, i0)[t], np.where(r, j1, i1)[t]
+    lines = np.stack(
+        [np.where(rr, p, o0), np.where(rr, p, o1), np.where(rr, o0, p), np.where(rr, o1, p)],
+        axis=-1,
+    )
+    found = ok & (count_in(hint_table, lines.reshape(-1, 4)).reshape(p.shape) > 0)
+    at = mid.copy()
+    at[todo] = p[np.arange(todo.size), found.argmax(axis=1)]  # the first found (one is)
     return at
 
 
@@ -189,14 +186,14 @@ def hinted(boxes: np.ndarray, hint_table: np.ndarray, size: int) -> np.ndarray:
     :meth:`~tasks.adaptive.Refinement._hinted`."""
     i0, i1, j0, j1 = boxes.T
     large = (i1 - i0 > size) | (j1 - j0 > size)
-    found = count_in(hint_table, interior(boxes)) > 0
-    for long_, edge in (
-        (i1 - i0 > size, (i0 + 1, i1 - 1, j0, j0)),
-        (i1 - i0 > size, (i0 + 1, i1 - 1, j1, j1)),
-        (j1 - j0 > size, (i0, i0, j0 + 1, j1 - 1)),
-        (j1 - j0 > size, (i1, i1, j0 + 1, j1 - 1)),
-    ):
-        found |= long_ & (count_in(hint_table, np.stack(edge, axis=1)) > 0)
+    parts = np.stack(  # the interior, then the inner points of the four edges
+        [interior(boxes),
+         np.stack([i0 + 1, i1 - 1, j0, j0], axis=1), np.stack([i0 + 1, i1 - 1, j1, j1], axis=1),
+         np.stack([i0, i0, j0 + 1, j1 - 1], axis=1), np.stack([i1, i1, j0 + 1, j1 - 1], axis=1)]
+    )  # fmt: skip
+    held = count_in(hint_table, parts.reshape(-1, 4)).reshape(5, -1) > 0
+    long_r, long_b = i1 - i0 > size, j1 - j0 > size  # edges along r, along beta
+    found = held[0] | (long_r & (held[1] | held[2])) | (long_b & (held[3] | held[4]))
     return large & found
 
 

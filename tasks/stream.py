@@ -135,8 +135,8 @@ class StreamRefinement(Refinement):
             boxes, at = np.unique(boxes, axis=0, return_index=True)  # each cell once
             depth = depth[at]
             leaf = self._settled_many(boxes)
-            if self.hint is not None:
-                leaf &= ~self._hinted_many(boxes)
+            if self.hint is not None and leaf.any():
+                leaf[leaf] = ~self._hinted_many(boxes[leaf])
             if leaf.any():
                 self._leaf_parts.append((boxes[leaf], depth[leaf]))
             wide, tall = boxes[:, 1] - boxes[:, 0], boxes[:, 3] - boxes[:, 2]
