@@ -58,7 +58,11 @@ verification sample are those of a study run. Prints the simulated fraction,
 the share of the dense grid's simulated cycles the simulated points hold, and
 its inverse (the CPU ratio a study would reach if a point cost its cycles and
 nothing else cost anything), the labels equal to the dense grid's and the
-verification sample:
+verification sample. The last column is the bound of any refinement: the
+points next to a change of the refinement's key (regime and flags) in the
+dense grid must be simulated by every map that gets them right, so the
+inverse of their share of the dense cycles caps the CPU ratio of a map whose
+points cost their dense cycles:
 
     python benchmarks/bench_adaptive.py --replay --size 1000x500 --scenes fig04:gamma1_kappa1
 
@@ -421,9 +425,10 @@ def replay_main(args, n_r: int, n_beta: int) -> int:
     print(
         "| scene | points | % simulated | % of the dense grid's cycles | cycles ratio "
         "| labels equal to dense | of the differing, determined in the dense grid "
-        "| verification | refinement CPU s |"
+        "| verification | refinement CPU s | bound: points next to a label change, "
+        "% of the dense cycles (cycles ratio) |"
     )
-    print("|" + "---|" * 9)
+    print("|" + "---|" * 10)
     for sc in cluster_scenes(args.scenes):
         scene, r, beta, dense = dense_fields(sc, n_r, n_beta, args.cache, args.fidelity)
         hint = None if args.hint == "none" else closed_form_hint(scene, r, beta, args.hint)
@@ -439,11 +444,14 @@ def replay_main(args, n_r: int, n_beta: int) -> int:
             share = cycles[sim].sum() / cycles.sum()
             differ = out["regime"] != dense["regime"]
             n = sim.size
+            edge = next_to_change(dense)
+            bound = cycles[edge].sum() / cycles.sum()
             print(
                 f"| {sc['name']}{label} | {n:,} | {100 * sim.mean():.2f} | {100 * share:.2f} "
                 f"| {1 / share:.1f} | {percent(n - int(differ.sum()), n, 4)} "
                 f"({int(differ.sum())} differ) | {int((differ & (dense['regime'] >= 0)).sum())} "
-                f"| {v.agree} / {v.sampled} | {cpu:.3f} |",
+                f"| {v.agree} / {v.sampled} | {cpu:.3f} | {int(edge.sum()):,}, "
+                f"{100 * bound:.2f} ({1 / bound:.1f}) |",
                 flush=True,
             )
         if len(maps) > 1:
@@ -451,6 +459,25 @@ def replay_main(args, n_r: int, n_beta: int) -> int:
             same = all(np.array_equal(a[k], b[k]) for k in a)
             print(f"| {sc['name']}: same map (every field, simulated, verification) | {same} |")
     return 0
+
+
+def next_to_change(dense: dict[str, np.ndarray]) -> np.ndarray:
+    """Points of the dense grid with a 4-neighbour of another refinement key
+    (:data:`tasks.adaptive.KEY_FIELDS`): those every correct map simulates."""
+    from tasks.adaptive import KEY_FIELDS
+
+    key = np.zeros(dense["regime"].shape, dtype=np.int64)
+    for name in KEY_FIELDS:
+        key = key * 1024 + (dense[name].astype(np.int64) + 512)
+    edge = np.zeros(key.shape, dtype=bool)
+    for axis in (0, 1):
+        a = [slice(None)] * 2
+        b = [slice(None)] * 2
+        a[axis], b[axis] = slice(1, None), slice(None, -1)
+        change = key[tuple(a)] != key[tuple(b)]
+        edge[tuple(a)] |= change
+        edge[tuple(b)] |= change
+    return edge
 
 
 def _replay(cls, shape, coarse_step, hint, dense):
