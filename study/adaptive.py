@@ -83,6 +83,10 @@ GIVEN_PER_POINT = 2
 #: followed by chains of lists of a few points, each waiting for the one before, and
 #: a round trip through the cluster (about 10 ms) costs ten times their computing.
 LOCAL_POINTS = 16
+#: A point list of at most this many points is computed in the client's thread also
+#: when it is the only one in flight (:meth:`AdaptivePlan.compute_here`): the workers
+#: are idle, and the client computes it in about the time of a round trip alone.
+LOCAL_POINTS_IDLE = 64
 #: Fraction of the points an adaptive scene is expected to simulate (planning only).
 ADAPTIVE_SIMULATED_FRACTION = 0.05
 
@@ -203,8 +207,11 @@ class AdaptivePlan(ScenePlan):
     seed_lists: bool = True
     #: Fewest points of a list cut smaller than the chunk target (:data:`MIN_LIST`).
     min_list: int = MIN_LIST
-    #: Largest point list computed in the client's thread (:meth:`compute_here`; 0: none).
+    #: Largest point list computed in the client's thread (:meth:`compute_here`; 0: none,
+    #: not even when no other is in flight).
     local_points: int = LOCAL_POINTS
+    #: Largest point list computed there when no other is in flight.
+    local_points_idle: int = LOCAL_POINTS_IDLE
     #: No byte shuffle in the netCDF file (:data:`study.netcdf.COMPRESSION`): inferred
     #: points repeat their cell's corner, which deflate finds better unshuffled.
     nc_shuffle: bool = False
@@ -400,13 +407,17 @@ class AdaptivePlan(ScenePlan):
         return None
 
     def _list_size(self, pl: _Plane) -> int:
-        """Points per list: the chunk target, or fewer when few points are ready, so that
-        they still fill :data:`PARTIAL_BELOW` lists (workers busy, short dependency
-        chains) of at least :attr:`min_list` points (with barriers: the chunk target)."""
+        """Points per list: the ready points cut into lists of equal length (lists handed
+        out together end together: no worker waits for a longer one), at most the chunk
+        target, and enough of them that :data:`PARTIAL_BELOW` lists are in flight (workers
+        busy, short dependency chains; the verification sample, known at once, twice as
+        many), each of at least :attr:`min_list` points (with barriers: the chunk target)."""
         target = max(1, self.block[0])
         if self.barriers:
             return target
-        return min(target, max(self.min_list, -(-pl.todo.size // PARTIAL_BELOW)))
+        want = PARTIAL_BELOW * (2 if pl.phase == "verify" else 1) - len(pl.outstanding)
+        n = max(1, want, -(-pl.todo.size // target))
+        return min(target, max(self.min_list, -(-pl.todo.size // n)))
 
     def _replay(self, pl: _Plane) -> None:
         """Move the refinement's ready points to ``todo``, answering at once those a saved
@@ -455,10 +466,13 @@ class AdaptivePlan(ScenePlan):
 
     def compute_here(self, unit: PointList) -> bool:
         """Whether the client computes this point list itself (:mod:`study.drive`): at most
-        :attr:`local_points` points of one contact (whose simulator releases the GIL), and
-        the simulator in numba's on-disk cache (the client loads it, about 0.2 s once;
-        it never compiles it, e.g. on the login node of a cluster)."""
-        if unit.n_points > self.local_points or contacts.is_multi(self.spec.structure):
+        :attr:`local_points` points, or :attr:`local_points_idle` when no other point
+        list is in flight (the workers wait for it too), of one contact (whose simulator
+        releases the GIL), and the simulator in numba's on-disk cache (the client loads
+        it, about 0.2 s once; it never compiles it, e.g. on the login node of a cluster)."""
+        alone = sum(len(p.outstanding) for p in self._active.values()) <= 1  # this one
+        limit = max(self.local_points, self.local_points_idle if alone else 0)
+        if not self.local_points or unit.n_points > limit or contacts.is_multi(self.spec.structure):
             return False
         if self._here is None:
             from tasks import numba_cache

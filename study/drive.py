@@ -262,6 +262,7 @@ def _drive(win: _Window, client, watchdog: Watchdog | None) -> None:
                     win.arrived(fut, arrays)
             win.fill()
     except BaseException:
-        with suppress(TimeoutError):  # bounded: the scheduler may be the one that went silent
+        # bounded: the scheduler may be the one that went silent, or the client closed
+        with suppress(TimeoutError, Exception):
             call_within(ASK_TIMEOUT, client.cancel, [f for f, _, _ in win.inflight.values()])
         raise
