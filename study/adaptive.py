@@ -84,9 +84,13 @@ GIVEN_PER_POINT = 2
 #: a round trip through the cluster (about 10 ms) costs ten times their computing.
 LOCAL_POINTS = 16
 #: A point list of at most this many points is computed in the client's thread also
-#: when it is the only one in flight (:meth:`AdaptivePlan.compute_here`): the workers
-#: are idle, and the client computes it in about the time of a round trip alone.
+#: while a worker thread has nothing else to do (:meth:`AdaptivePlan.compute_here`),
+#: if its points cost at most :data:`LOCAL_SECONDS_IDLE` by the plane's lists so far.
 LOCAL_POINTS_IDLE = 64
+#: Seconds of computing a point list may cost in the client while a worker thread is
+#: free: about the round trip through the cluster it saves (client, scheduler, worker
+#: and back: 3-10 ms on 2 busy cores).
+LOCAL_SECONDS_IDLE = 0.01
 #: Fraction of the points an adaptive scene is expected to simulate (planning only).
 ADAPTIVE_SIMULATED_FRACTION = 0.05
 
@@ -185,6 +189,7 @@ class _Plane:
     orbits: _Orbits | None = None  # solved orbits that seed new point lists (warm starts)
     batches: int = 0
     here: int = 0  # point lists computed by the client (AdaptivePlan.compute_here)
+    cost: list = field(default_factory=lambda: [0.0, 0])  # compute seconds, points so far
     reused: int = 0  # points answered from saved point lists
     computed: int = 0
     shown: float = field(default_factory=time.monotonic)
@@ -210,7 +215,7 @@ class AdaptivePlan(ScenePlan):
     #: Largest point list computed in the client's thread (:meth:`compute_here`; 0: none,
     #: not even when no other is in flight).
     local_points: int = LOCAL_POINTS
-    #: Largest point list computed there when no other is in flight.
+    #: Largest point list computed there while a worker thread is free.
     local_points_idle: int = LOCAL_POINTS_IDLE
     #: No byte shuffle in the netCDF file (:data:`study.netcdf.COMPRESSION`): inferred
     #: points repeat their cell's corner, which deflate finds better unshuffled.
@@ -410,12 +415,14 @@ class AdaptivePlan(ScenePlan):
         """Points per list: the ready points cut into lists of equal length (lists handed
         out together end together: no worker waits for a longer one), at most the chunk
         target, and enough of them that :data:`PARTIAL_BELOW` lists are in flight (workers
-        busy, short dependency chains; the verification sample, known at once, twice as
-        many), each of at least :attr:`min_list` points (with barriers: the chunk target)."""
+        busy, short dependency chains; twice as many for the coarse lattice, whose first
+        results start the refinement sooner, and the verification sample, known at
+        once), each of at least :attr:`min_list` points (with barriers: the chunk target)."""
         target = max(1, self.block[0])
         if self.barriers:
             return target
-        want = PARTIAL_BELOW * (2 if pl.phase == "verify" else 1) - len(pl.outstanding)
+        at_once = pl.phase == "verify" or not (pl.computed or pl.reused)
+        want = PARTIAL_BELOW * (2 if at_once else 1) - len(pl.outstanding)
         n = max(1, want, -(-pl.todo.size // target))
         return min(target, max(self.min_list, -(-pl.todo.size // n)))
 
@@ -466,12 +473,18 @@ class AdaptivePlan(ScenePlan):
 
     def compute_here(self, unit: PointList) -> bool:
         """Whether the client computes this point list itself (:mod:`study.drive`): at most
-        :attr:`local_points` points, or :attr:`local_points_idle` when no other point
-        list is in flight (the workers wait for it too), of one contact (whose simulator
-        releases the GIL), and the simulator in numba's on-disk cache (the client loads
-        it, about 0.2 s once; it never compiles it, e.g. on the login node of a cluster)."""
-        alone = sum(len(p.outstanding) for p in self._active.values()) <= 1  # this one
-        limit = max(self.local_points, self.local_points_idle if alone else 0)
+        :attr:`local_points` points, or while a worker thread has nothing else of this
+        scene to do (it would wait a round trip for it) at most :attr:`local_points_idle`
+        costing at most :data:`LOCAL_SECONDS_IDLE` (the plane's lists so far), of one
+        contact (whose simulator releases the GIL), and the simulator in numba's on-disk
+        cache (the client loads it, about 0.2 s once; it never compiles it, e.g. on the
+        login node of a cluster)."""
+        pl = self._active[unit.sweep]
+        others = sum(len(p.outstanding) for p in self._active.values()) - 1  # not this one
+        limit = self.local_points
+        if others < max(1, self.worker_threads) and pl.cost[1]:  # a worker thread is free
+            cheap = int(LOCAL_SECONDS_IDLE * pl.cost[1] / max(pl.cost[0], 1e-9))
+            limit = max(limit, min(self.local_points_idle, cheap))
         if not self.local_points or unit.n_points > limit or contacts.is_multi(self.spec.structure):
             return False
         if self._here is None:
@@ -479,7 +492,7 @@ class AdaptivePlan(ScenePlan):
 
             self._here = numba_cache.is_compiled()
         if self._here:
-            self._active[unit.sweep].here += 1
+            pl.here += 1
         return self._here
 
     def accept(self, unit: PointList, arrays: dict[str, np.ndarray], work) -> None:
@@ -488,6 +501,8 @@ class AdaptivePlan(ScenePlan):
         pl = self._active[unit.sweep]
         pl.outstanding.discard(unit.key)
         pl.computed += 1
+        pl.cost[0] += float(arrays["seconds"])
+        pl.cost[1] += unit.n_points
         pl.handed = False
         if pl.orbits is not None and "final" in arrays:
             pl.orbits.add(unit.idx, arrays["final"])
