@@ -48,8 +48,9 @@ client runs in a process of its own (``study_runner.py``, started before the
 timings), this checkout's too, so "of which client" is the client process alone
 (the scheduler runs in the benchmark's process; "adaptive CPU s" counts the
 client, the scheduler and the workers). ``--repeat N`` runs each adaptive study
-N times, alternating, keeping the least wall and CPU seconds (the load of other
-users comes and goes):
+N times, alternating (in turned order every other time: a study run right
+after another measured 10-15 % slower, the same code in both columns), keeping
+the least wall and CPU seconds (the load of other users comes and goes):
 
     python benchmarks/bench_adaptive.py --cluster --code ../main --repeat 3
 
@@ -335,8 +336,10 @@ def cluster_main(args, n_r: int, n_beta: int) -> int:
             befores.append((f"{args.code}", other, None))
         for sc in scenes:
             runs: dict[str, list] = {label: [] for label, _, _ in [*befores, ("", here, None)]}
-            for _ in range(args.repeat):  # alternating: a change of load hits all alike
-                for label, runner, patch in [*befores, ("", here, None)]:
+            order = [*befores, ("", here, None)]
+            for i in range(args.repeat):  # alternating: a change of load hits all alike,
+                # in turned order every other time (the run after another runs slower)
+                for label, runner, patch in order if i % 2 == 0 else order[::-1]:
                     runs[label].append(
                         _run(text(sc, (n_r, n_beta), mode), folder, client, runner, patch)
                     )

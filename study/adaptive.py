@@ -179,6 +179,7 @@ class _Plane:
     row: np.ndarray | None = None  # flat index -> row of ``saved`` (-1: not saved)
     phase: str = "refine"  # then "verify"
     todo: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))  # ready
+    cut: int = 0  # points per list of the ready points (0: to decide, _list_size)
     sample: np.ndarray | None = None  # the verification sample (sorted)
     out: dict = field(default_factory=dict)  # its results
     outstanding: set = field(default_factory=set)  # keys handed out, not arrived
@@ -412,18 +413,22 @@ class AdaptivePlan(ScenePlan):
         return None
 
     def _list_size(self, pl: _Plane) -> int:
-        """Points per list: the ready points cut into lists of equal length (lists handed
-        out together end together: no worker waits for a longer one), at most the chunk
-        target, and enough of them that :data:`PARTIAL_BELOW` lists are in flight (workers
-        busy, short dependency chains), each of at least :attr:`min_list` points (with
-        barriers: the chunk target). Twice as many lists for the coarse lattice and the
-        verification sample (known at once) measured no faster: more lists, more of
-        Dask's cost per list (about 6 ms of CPU in the client, scheduler and worker)."""
+        """Points per list: the ready points cut into :data:`PARTIAL_BELOW` lists or more
+        (workers busy, short dependency chains), at most the chunk target, at least
+        :attr:`min_list` points (with barriers: the chunk target). The cut is kept until
+        new points are ready: the lists of the same ready points have equal lengths, and
+        those handed out together end together (no short remainder waits for a later
+        round: the verification sample's last 7 points and then the inferred fill, on
+        Fig. 4). More lists for the same points (the coarse lattice, the verification
+        sample) measured no faster: each costs Dask about 6 ms of CPU (client,
+        scheduler, worker)."""
         target = max(1, self.block[0])
         if self.barriers:
             return target
-        n = max(1, PARTIAL_BELOW - len(pl.outstanding), -(-pl.todo.size // target))
-        return min(target, max(self.min_list, -(-pl.todo.size // n)))
+        if not pl.cut:
+            n = max(PARTIAL_BELOW, -(-pl.todo.size // target))
+            pl.cut = min(target, max(self.min_list, -(-pl.todo.size // n)))
+        return pl.cut
 
     def _replay(self, pl: _Plane) -> None:
         """Move the refinement's ready points to ``todo``, answering at once those a saved
@@ -436,7 +441,9 @@ class AdaptivePlan(ScenePlan):
         while True:
             wave_open = self.barriers and (pl.outstanding or pl.todo.size)
             if pl.phase == "refine" and not wave_open:
-                pl.todo = np.concatenate([pl.todo, pl.ref.take()])
+                new = pl.ref.take()
+                if new.size:
+                    pl.todo, pl.cut = np.concatenate([pl.todo, new]), 0
             if pl.row is None or not pl.todo.size:
                 return
             rows = pl.row[pl.todo]
@@ -531,7 +538,7 @@ class AdaptivePlan(ScenePlan):
         pl.phase = "verify"
         sample = pl.ref.verification(self.spec.verify_fraction, DEFAULT_VERIFY_MIN, VERIFY_SEED)
         pl.sample, pl.out = sample, self._empty(sample.size)
-        pl.todo = sample.copy()
+        pl.todo, pl.cut = sample.copy(), 0
 
     def _start(self, sweep: tuple[int, ...], work) -> _Plane:
         axes, spec = self._axes, self.spec

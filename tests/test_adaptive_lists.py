@@ -37,16 +37,15 @@ def _plan(tmp_path):
     return plan(Study.from_toml(path))[0]
 
 
-def _cut(p, n: int, outstanding: int = 0) -> list[int]:
-    """The lengths of the lists ``n`` ready points are handed out as, as
-    ``AdaptivePlan._next_of`` hands them out while few lists are in flight."""
-    pl = SimpleNamespace(todo=np.arange(n), outstanding=set(range(outstanding)), phase="refine")
+def _cut(p, n: int) -> list[int]:
+    """The lengths of the lists ``n`` ready points are handed out as (while few lists are
+    in flight, as ``AdaptivePlan._next_of`` hands them out)."""
+    pl = SimpleNamespace(todo=np.arange(n), cut=0)
     sizes = []
     while pl.todo.size:
         size = p._list_size(pl)
         sizes.append(min(size, pl.todo.size))
         pl.todo = pl.todo[size:]
-        pl.outstanding.add(len(sizes) + outstanding)
     return sizes
 
 
@@ -63,12 +62,6 @@ def test_ready_points_are_cut_into_equal_lists(tmp_path, n):
     assert len(sizes) >= min(PARTIAL_BELOW, -(-n // MIN_LIST))
     if n >= PARTIAL_BELOW * MIN_LIST:  # no short remainder left over for a later round
         assert sizes[-1] > sizes[0] // 2
-
-
-def test_lists_in_flight_leave_fewer_to_cut(tmp_path):
-    p = _plan(tmp_path)
-    assert _cut(p, 600, outstanding=PARTIAL_BELOW) == _cut(p, 600, outstanding=PARTIAL_BELOW + 3)
-    assert len(_cut(p, 2000, outstanding=0)) > len(_cut(p, 2000, outstanding=PARTIAL_BELOW - 1))
 
 
 def _here(p, n_points: int, others: int, threads: int, seconds_per_point: float) -> bool:
