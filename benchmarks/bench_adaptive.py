@@ -27,9 +27,9 @@ base contact on m3, 6DOF ground contact on m5), or ``--scenes`` (also
 ``dof3_base_m2``: 3DOF base contact on m2, ``dof5_ground_m3_kappa2``: 5DOF
 ground contact on m3 with kappa 2; :data:`OTHER_SCENES`). Prints the
 simulated fraction, levels, point lists, wall seconds of both and their ratio,
-the CPU seconds of both (this process and the workers: a busy machine stretches
-the wall seconds of one run more than the other's, not the CPU seconds), the
-adaptive study's share in this process (the client: refinement, Dask client,
+the CPU seconds of both (the client, the scheduler and the workers: a busy
+machine stretches the wall seconds of one run more than the other's, not the CPU
+seconds), the adaptive study's client process alone (refinement, Dask client,
 saving, the result file) and the ratio, the labels equal to the dense grid's and
 the verification sample;
 ``--barriers`` adds the old wave-by-wave refinement
@@ -41,11 +41,16 @@ points), ``--no-dense`` skips the dense grids:
 
     python benchmarks/bench_adaptive.py --cluster --size 1000x500 --scenes fig04:gamma1_kappa1
 
-``--code DIR`` (e.g. ``../main``) adds the adaptive study with the refinement
-of that checkout's ``tasks/adaptive.py``, no point list computed by the client and
-zlib level 4 with shuffle (as before they changed), and ``--repeat N`` runs each
-adaptive study N times, alternating, keeping the least wall and CPU seconds (the
-load of other users comes and goes):
+``--code DIR`` (e.g. ``../main``) adds the adaptive study run by that
+checkout's ``study`` and ``tasks`` (its client: refinement, point lists,
+saving, the result file; the workers run this checkout's tasks). Every study
+client runs in a process of its own (``study_runner.py``, started before the
+timings), this checkout's too, so "of which client" is the client process alone
+(the scheduler runs in the benchmark's process; "adaptive CPU s" counts the
+client, the scheduler and the workers). ``--repeat N`` runs each adaptive study
+N times, alternating (in turned order every other time: a study run right
+after another measured 10-15 % slower, the same code in both columns), keeping
+the least wall and CPU seconds (the load of other users comes and goes):
 
     python benchmarks/bench_adaptive.py --cluster --code ../main --repeat 3
 
@@ -198,74 +203,75 @@ def cluster_scenes(names: list[str] | None) -> list[dict]:
 
 
 def _cpu(client) -> float:
-    """CPU seconds used so far by this process and the cluster's worker processes."""
+    """CPU seconds used so far by this process (the scheduler) and the cluster's workers."""
     workers = client.run(time.process_time) if client is not None else {}
     return time.process_time() + sum(workers.values())
 
 
 #: ``--before``: the adaptive study as it was before its point lists were seeded from
 #: the solved orbits of their cells' corners and cut at 256 points (64).
-BEFORE = {"seed_lists": False, "min_list": 64}
+BEFORE = [
+    ["study.adaptive", "AdaptivePlan.seed_lists", False],
+    ["study.adaptive", "AdaptivePlan.min_list", 64],
+]
+#: ``--barriers``: the old wave-by-wave refinement.
+BARRIERS = [["study.adaptive", "AdaptivePlan.barriers", True]]
+RUNNER = Path(__file__).resolve().parent / "study_runner.py"
 
 
-def _before_patch() -> list[tuple[object, str, object]]:
-    from study.adaptive import AdaptivePlan
+class Runner:
+    """A study client in a process of its own (``study_runner.py``) with the code of a
+    checkout, connected to the benchmark's scheduler: the same process layout for this
+    checkout and another (``--code``), started before the timings."""
 
-    return [(AdaptivePlan, name, value) for name, value in BEFORE.items()]
+    def __init__(self, checkout: Path, address: str) -> None:
+        import subprocess
+
+        self.proc = subprocess.Popen(
+            [sys.executable, str(RUNNER), str(checkout), address],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            text=True,
+        )
+        ready = json.loads(self.proc.stdout.readline() or "{}")
+        if not ready.get("ready"):
+            raise SystemExit(f"the study client of {checkout} did not start")
+        self.module = ready["module"]
+
+    def run(self, toml: Path, out: Path, patch: list) -> dict:
+        self.proc.stdin.write(json.dumps({"toml": str(toml), "out": str(out), "patch": patch}))
+        self.proc.stdin.write("\n")
+        self.proc.stdin.flush()
+        line = self.proc.stdout.readline()
+        if not line:
+            raise SystemExit("a study client stopped (its error is above)")
+        return json.loads(line)
+
+    def close(self) -> None:
+        self.proc.stdin.close()
+        self.proc.wait(timeout=60)
 
 
-def _code_patch(code: Path) -> list[tuple[object, str, object]]:
-    """``--code DIR``: the adaptive study with the refinement of another checkout (e.g.
-    ``../main``), no point lists computed by the client, zlib level 4 with shuffle."""
-    import study.adaptive
-    import study.netcdf
-
-    return [
-        (study.adaptive, "StreamRefinement", _stream_class(code)),
-        (study.adaptive.AdaptivePlan, "local_points", 0),
-        (study.adaptive.AdaptivePlan, "nc_shuffle", True),
-        (study.netcdf, "COMPRESSION", {"zlib": True, "complevel": 4, "shuffle": True}),
-    ]
-
-
-def _run(
-    text: str, folder: Path, client, barriers: bool = False, patch: list | None = None
-) -> tuple[float, dict, str]:
-    """Wall seconds, regime and simulated arrays (and attributes, and ``cpu``: the CPU
-    seconds of this process and the workers), and the log of one study run
-    (``client`` None: as ``study run`` would, threads of this process); ``patch``:
-    ``(object, attribute, value)`` set for this run only (:data:`BEFORE`, --code)."""
-    import io
-
+def _run(text: str, folder: Path, client, runner: Runner, patch: list | None = None):
+    """Wall seconds, regime and simulated arrays (and attributes, ``cpu``: the CPU
+    seconds of the client, the scheduler and the workers, ``client_cpu``: the client's
+    own), and the log of one study run by ``runner``; ``patch``: ``[module,
+    "Class.attribute", value]`` set for this run only (:data:`BEFORE`, :data:`BARRIERS`)."""
     import xarray as xr
-
-    from study import run_study
-    from study.adaptive import AdaptivePlan
 
     path = folder / "bench.toml"
     path.write_text(text, encoding="utf-8")
     out = folder / f"bench-{time.monotonic_ns()}.nc"
-    log = io.StringIO()
-    patch = [(AdaptivePlan, "barriers", barriers), *(patch or [])]
-    saved = [(obj, name, getattr(obj, name)) for obj, name, _ in patch]
-    for obj, name, value in patch:
-        setattr(obj, name, value)
-    try:
-        cpu, own = _cpu(client), time.process_time()
-        t = time.perf_counter()
-        run_study(Study.from_toml(path), out, client=client, progress=False, stream=log)
-        seconds = time.perf_counter() - t
-        cpu, own = _cpu(client) - cpu, time.process_time() - own
-    finally:
-        for obj, name, value in reversed(saved):
-            setattr(obj, name, value)
+    cpu = _cpu(client)
+    answer = runner.run(path, out, patch or [])
+    cpu = _cpu(client) - cpu + answer["client_cpu"]
     with xr.open_dataset(out) as ds:
         arrays = {k: ds[k].values for k in ("regime", "simulated") if k in ds}
         arrays["attrs"] = dict(ds.attrs)
     arrays["cpu"] = cpu
-    arrays["client_cpu"] = own  # this process: the client (and the scheduler's thread)
+    arrays["client_cpu"] = answer["client_cpu"]
     out.unlink()
-    return seconds, arrays, log.getvalue()
+    return answer["wall"], arrays, answer["log"]
 
 
 def _best(runs: list[tuple[float, dict, str]]) -> tuple[float, dict, str]:
@@ -307,13 +313,18 @@ def cluster_main(args, n_r: int, n_beta: int) -> int:
         tempfile.TemporaryDirectory() as tmp,
     ):
         folder = Path(tmp)
-        for sc in scenes:  # warm up the workers (kernel loaded) outside the timings
-            _run(text(sc, (40, 20), mode), folder, client)
+        here = Runner(Path(__file__).resolve().parent.parent, cluster.scheduler_address)
+        other = Runner(args.code, cluster.scheduler_address) if args.code else None
+        for sc in scenes:  # warm up the workers and clients (kernel loaded), untimed
+            for runner in (here, other) if other else (here,):
+                _run(text(sc, (40, 20), mode), folder, client, runner)
         print(
             f"adaptive vs dense studies, {n_r} x {n_beta}, one LocalCluster of "
             f"{args.workers} single-threaded worker processes (started and warmed up "
             f"before the timings), fidelity {args.fidelity}, coarse_step "
-            f"{args.coarse_step}, hint exact, verify_fraction 0.005; same run"
+            f"{args.coarse_step}, hint exact, verify_fraction 0.005; same run; study clients "
+            f"in processes of their own: {here.module}"
+            + (f", --code {other.module}" if other else "")
         )
         print(
             "| scene | points | % simulated | levels | point lists | adaptive s "
@@ -321,19 +332,22 @@ def cluster_main(args, n_r: int, n_beta: int) -> int:
             "| CPU ratio | labels equal to dense | verification |"
         )
         print("|" + "---|" * 14)
-        befores = []  # (label, patch) run just before the current study: the same load
+        # (label, client, patch) run just before the current study: the same load
+        befores: list[tuple[str, Runner, list | None]] = []
         if args.before:
-            befores.append(("before", _before_patch()))
-        if args.code is not None:
-            befores.append((f"{args.code}", _code_patch(args.code)))
+            befores.append(("before", here, BEFORE))
+        if other is not None:
+            befores.append((f"{args.code}", other, None))
         for sc in scenes:
-            runs: dict[str, list] = {label: [] for label, _ in [*befores, ("", None)]}
-            for _ in range(args.repeat):  # alternating: a change of load hits all alike
-                for label, patch in [*befores, ("", None)]:
+            runs: dict[str, list] = {label: [] for label, _, _ in [*befores, ("", here, None)]}
+            order = [*befores, ("", here, None)]
+            for i in range(args.repeat):  # alternating: a change of load hits all alike,
+                # in turned order every other time (the run after another runs slower)
+                for label, runner, patch in order if i % 2 == 0 else order[::-1]:
                     runs[label].append(
-                        _run(text(sc, (n_r, n_beta), mode), folder, client, patch=patch)
+                        _run(text(sc, (n_r, n_beta), mode), folder, client, runner, patch)
                     )
-            earlier = [(label, _best(runs[label])) for label, _ in befores]
+            earlier = [(label, _best(runs[label])) for label, _, _ in befores]
             sec, arr, log = _best(runs[""])
             at = arr["attrs"]
             lists = sum(int(m) for m in re.findall(r"(\d+) point lists computed", log))
@@ -342,7 +356,7 @@ def cluster_main(args, n_r: int, n_beta: int) -> int:
             verify = f"{at['verification_agree']} / {at['verification_sampled']}"
             dense_s = ratio = equal = dense_cpu = cpu_ratio = "-"
             if not args.no_dense:
-                d_sec, d_arr, _ = _run(text(sc, (n_r, n_beta), ""), folder, client)
+                d_sec, d_arr, _ = _run(text(sc, (n_r, n_beta), ""), folder, client, here)
                 n = d_arr["regime"].size
                 same = int((arr["regime"] == d_arr["regime"]).sum())
                 dense_s, ratio = f"{d_sec:.1f}", f"{d_sec / sec:.1f}"
@@ -371,7 +385,9 @@ def cluster_main(args, n_r: int, n_beta: int) -> int:
                     flush=True,
                 )
             if args.barriers:
-                b_sec, b_arr, _ = _run(text(sc, (n_r, n_beta), mode), folder, client, True)
+                b_sec, b_arr, _ = _run(
+                    text(sc, (n_r, n_beta), mode), folder, client, here, BARRIERS
+                )
                 same = np.array_equal(b_arr["regime"], arr["regime"]) and np.array_equal(
                     b_arr["simulated"], arr["simulated"]
                 )
@@ -379,6 +395,8 @@ def cluster_main(args, n_r: int, n_beta: int) -> int:
                     f"| {sc['name']}, waves | | | | | {b_sec:.1f} | | | {b_arr['cpu']:.1f} "
                     f"| {b_arr['client_cpu']:.2f} | | | same map: {same} | |"
                 )
+        for runner in (here, other) if other else (here,):
+            runner.close()
     return 0
 
 
@@ -586,7 +604,7 @@ def main(argv: list[str] | None = None) -> int:
         "--code",
         type=Path,
         help="--replay: also the refinement of this checkout (e.g. ../main); --cluster: "
-        "also the study with it, no lists computed by the client, zlib 4; same run",
+        "also the adaptive study run by its client (study and tasks); same run",
     )
     args = ap.parse_args(argv)
     n_r, n_beta = (int(x) for x in args.size.lower().split("x"))

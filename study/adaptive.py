@@ -83,6 +83,14 @@ GIVEN_PER_POINT = 2
 #: followed by chains of lists of a few points, each waiting for the one before, and
 #: a round trip through the cluster (about 10 ms) costs ten times their computing.
 LOCAL_POINTS = 16
+#: A point list of at most this many points is computed in the client's thread also
+#: while a worker thread has nothing else to do (:meth:`AdaptivePlan.compute_here`),
+#: if its points cost at most :data:`LOCAL_SECONDS_IDLE` by the plane's lists so far.
+LOCAL_POINTS_IDLE = 64
+#: Seconds of computing a point list may cost in the client while a worker thread is
+#: free: about the round trip through the cluster it saves (client, scheduler, worker
+#: and back: 3-10 ms on 2 busy cores).
+LOCAL_SECONDS_IDLE = 0.01
 #: Fraction of the points an adaptive scene is expected to simulate (planning only).
 ADAPTIVE_SIMULATED_FRACTION = 0.05
 
@@ -171,6 +179,7 @@ class _Plane:
     row: np.ndarray | None = None  # flat index -> row of ``saved`` (-1: not saved)
     phase: str = "refine"  # then "verify"
     todo: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))  # ready
+    cut: int = 0  # points per list of the ready points (0: to decide, _list_size)
     sample: np.ndarray | None = None  # the verification sample (sorted)
     out: dict = field(default_factory=dict)  # its results
     outstanding: set = field(default_factory=set)  # keys handed out, not arrived
@@ -181,6 +190,7 @@ class _Plane:
     orbits: _Orbits | None = None  # solved orbits that seed new point lists (warm starts)
     batches: int = 0
     here: int = 0  # point lists computed by the client (AdaptivePlan.compute_here)
+    cost: list = field(default_factory=lambda: [0.0, 0])  # compute seconds, points so far
     reused: int = 0  # points answered from saved point lists
     computed: int = 0
     shown: float = field(default_factory=time.monotonic)
@@ -203,8 +213,11 @@ class AdaptivePlan(ScenePlan):
     seed_lists: bool = True
     #: Fewest points of a list cut smaller than the chunk target (:data:`MIN_LIST`).
     min_list: int = MIN_LIST
-    #: Largest point list computed in the client's thread (:meth:`compute_here`; 0: none).
+    #: Largest point list computed in the client's thread (:meth:`compute_here`; 0: none,
+    #: not even when no other is in flight).
     local_points: int = LOCAL_POINTS
+    #: Largest point list computed there while a worker thread is free.
+    local_points_idle: int = LOCAL_POINTS_IDLE
     #: No byte shuffle in the netCDF file (:data:`study.netcdf.COMPRESSION`): inferred
     #: points repeat their cell's corner, which deflate finds better unshuffled.
     nc_shuffle: bool = False
@@ -400,13 +413,22 @@ class AdaptivePlan(ScenePlan):
         return None
 
     def _list_size(self, pl: _Plane) -> int:
-        """Points per list: the chunk target, or fewer when few points are ready, so that
-        they still fill :data:`PARTIAL_BELOW` lists (workers busy, short dependency
-        chains) of at least :attr:`min_list` points (with barriers: the chunk target)."""
+        """Points per list: the ready points cut into :data:`PARTIAL_BELOW` lists or more
+        (workers busy, short dependency chains), at most the chunk target, at least
+        :attr:`min_list` points (with barriers: the chunk target). The cut is kept until
+        new points are ready: the lists of the same ready points have equal lengths, and
+        those handed out together end together (no short remainder waits for a later
+        round: the verification sample's last 7 points and then the inferred fill, on
+        Fig. 4). More lists for the same points (the coarse lattice, the verification
+        sample) measured no faster: each costs Dask about 6 ms of CPU (client,
+        scheduler, worker)."""
         target = max(1, self.block[0])
         if self.barriers:
             return target
-        return min(target, max(self.min_list, -(-pl.todo.size // PARTIAL_BELOW)))
+        if not pl.cut:
+            n = max(PARTIAL_BELOW, -(-pl.todo.size // target))
+            pl.cut = min(target, max(self.min_list, -(-pl.todo.size // n)))
+        return pl.cut
 
     def _replay(self, pl: _Plane) -> None:
         """Move the refinement's ready points to ``todo``, answering at once those a saved
@@ -419,7 +441,9 @@ class AdaptivePlan(ScenePlan):
         while True:
             wave_open = self.barriers and (pl.outstanding or pl.todo.size)
             if pl.phase == "refine" and not wave_open:
-                pl.todo = np.concatenate([pl.todo, pl.ref.take()])
+                new = pl.ref.take()
+                if new.size:
+                    pl.todo, pl.cut = np.concatenate([pl.todo, new]), 0
             if pl.row is None or not pl.todo.size:
                 return
             rows = pl.row[pl.todo]
@@ -455,17 +479,26 @@ class AdaptivePlan(ScenePlan):
 
     def compute_here(self, unit: PointList) -> bool:
         """Whether the client computes this point list itself (:mod:`study.drive`): at most
-        :attr:`local_points` points of one contact (whose simulator releases the GIL), and
-        the simulator in numba's on-disk cache (the client loads it, about 0.2 s once;
-        it never compiles it, e.g. on the login node of a cluster)."""
-        if unit.n_points > self.local_points or contacts.is_multi(self.spec.structure):
+        :attr:`local_points` points, or while a worker thread has nothing else of this
+        scene to do (it would wait a round trip for it) at most :attr:`local_points_idle`
+        costing at most :data:`LOCAL_SECONDS_IDLE` (the plane's lists so far), of one
+        contact (whose simulator releases the GIL), and the simulator in numba's on-disk
+        cache (the client loads it, about 0.2 s once; it never compiles it, e.g. on the
+        login node of a cluster)."""
+        pl = self._active[unit.sweep]
+        others = sum(len(p.outstanding) for p in self._active.values()) - 1  # not this one
+        limit = self.local_points
+        if others < max(1, self.worker_threads) and pl.cost[1]:  # a worker thread is free
+            cheap = int(LOCAL_SECONDS_IDLE * pl.cost[1] / max(pl.cost[0], 1e-9))
+            limit = max(limit, min(self.local_points_idle, cheap))
+        if not self.local_points or unit.n_points > limit or contacts.is_multi(self.spec.structure):
             return False
         if self._here is None:
             from tasks import numba_cache
 
             self._here = numba_cache.is_compiled()
         if self._here:
-            self._active[unit.sweep].here += 1
+            pl.here += 1
         return self._here
 
     def accept(self, unit: PointList, arrays: dict[str, np.ndarray], work) -> None:
@@ -474,6 +507,8 @@ class AdaptivePlan(ScenePlan):
         pl = self._active[unit.sweep]
         pl.outstanding.discard(unit.key)
         pl.computed += 1
+        pl.cost[0] += float(arrays["seconds"])
+        pl.cost[1] += unit.n_points
         pl.handed = False
         if pl.orbits is not None and "final" in arrays:
             pl.orbits.add(unit.idx, arrays["final"])
@@ -503,7 +538,7 @@ class AdaptivePlan(ScenePlan):
         pl.phase = "verify"
         sample = pl.ref.verification(self.spec.verify_fraction, DEFAULT_VERIFY_MIN, VERIFY_SEED)
         pl.sample, pl.out = sample, self._empty(sample.size)
-        pl.todo = sample.copy()
+        pl.todo, pl.cut = sample.copy(), 0
 
     def _start(self, sweep: tuple[int, ...], work) -> _Plane:
         axes, spec = self._axes, self.spec

@@ -126,23 +126,31 @@ class _Window:
             threads = 0
         self.size = max(MIN_WINDOW, WINDOW_PER_THREAD * threads)
         self.next_look = now + WINDOW_REFRESH
+        for p in self.plans:
+            p.worker_threads = threads
 
     def fill(self) -> None:
-        """Submit units until the window is full or every plan waits or is done."""
-        self._resize()
-        batch: list[tuple[ScenePlan, object]] = []
-        for p in list(self.active):
-            while len(self.inflight) + len(batch) < self.size:
-                unit = p.next_unit(self.work)
-                if unit is None:
-                    self.active.remove(p)
-                    break
-                if unit is WAIT:
-                    break
-                if not self.here(p, unit):
-                    batch.append((p, unit))
-        self.progress()
-        self.submit(batch)
+        """Submit units until the window is full or every plan waits or is done. The
+        worker threads are looked at after the units are submitted (a round trip: they
+        compute meanwhile), and the window filled again if it grew (a first look)."""
+        while True:
+            size = self.size
+            batch: list[tuple[ScenePlan, object]] = []
+            for p in list(self.active):
+                while len(self.inflight) + len(batch) < self.size:
+                    unit = p.next_unit(self.work)
+                    if unit is None:
+                        self.active.remove(p)
+                        break
+                    if unit is WAIT:
+                        break
+                    if not self.here(p, unit):
+                        batch.append((p, unit))
+            self.progress()
+            self.submit(batch)
+            self._resize()
+            if self.size <= size or not self.active:
+                return
 
     def here(self, p: ScenePlan, unit) -> bool:
         """Compute a unit the plan says is cheaper here than a round trip through the
@@ -262,6 +270,7 @@ def _drive(win: _Window, client, watchdog: Watchdog | None) -> None:
                     win.arrived(fut, arrays)
             win.fill()
     except BaseException:
-        with suppress(TimeoutError):  # bounded: the scheduler may be the one that went silent
+        # bounded: the scheduler may be the one that went silent, or the client closed
+        with suppress(TimeoutError, Exception):
             call_within(ASK_TIMEOUT, client.cancel, [f for f, _, _ in win.inflight.values()])
         raise

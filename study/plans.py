@@ -97,6 +97,8 @@ class ScenePlan:
         #: Points whose results are final (progress), and the units still to hand out.
         self.finished_points = 0
         self._todo: Iterator[Chunk] | None = None
+        #: Worker threads of the cluster (set by :mod:`study.drive` as it looks).
+        self.worker_threads = 0
 
     @classmethod
     def build(cls, spec: SceneSpec, study: Study) -> ScenePlan:

@@ -271,8 +271,9 @@ def watched_batches(futures, watchdog: Watchdog | None, poll: float = 0.1) -> It
             return
         watchdog.check()
         if condition is not None:
-            with condition:
-                condition.wait(timeout=poll)
+            with condition:  # asked under the lock the notice is sent under: none is missed
+                if not futures.has_ready():
+                    condition.wait(timeout=poll)
         else:
             time.sleep(poll)
 
