@@ -77,7 +77,7 @@ PARTIAL_BELOW = 4
 MIN_LIST = 256
 #: Solved points (nearest first, :func:`tasks.seeds.grid_neighbours`) whose orbits are
 #: sent with a point list to seed each of its points (one contact, warm starts on).
-GIVEN_PER_POINT = 2
+GIVEN_PER_POINT = 4
 #: A point list of at most this many points is computed in the client's thread
 #: (:meth:`AdaptivePlan.compute_here`): at the end of a refinement, boundaries are
 #: followed by chains of lists of a few points, each waiting for the one before, and

@@ -98,7 +98,7 @@ def _candidate(seeds, i, q, c):
 
 
 @njit(cache=True)
-def secant_seed(r, beta, i, nth, seeds, seedable, final, given, scene, settings, pred):
+def secant_seed(r, beta, i, nth, seeds, seedable, final, given, scene, settings, pred, between):
     """The ``nth`` (0, 1, ...) secant prediction of point ``i``'s orbit (into ``pred``).
 
     The pairs ``(j, k)`` are taken in order: ``j`` each point that may lie on a
@@ -108,7 +108,10 @@ def secant_seed(r, beta, i, nth, seeds, seedable, final, given, scene, settings,
     line through ``i`` and ``j`` (:func:`_along`). Where ``k``'s section differs
     from ``j``'s, ``k``'s orbit is carried to ``j``'s section (a part of a period
     of ``k``'s own motion); the state there must lie in the same kind of phase
-    (stuck or sliding) as ``j``'s.
+    (stuck or sliding) as ``j``'s. With ``between`` only interpolations count
+    (``i`` between ``j`` and ``k``: ``t < 0``, error of order ``h^2`` where the
+    copied seed's is of order ``h``; :func:`tasks.kernel.point.run_points_given`
+    tries the first of them before any copied seed).
 
     Returns True where ``pred`` holds a prediction (phase and section of ``j``).
     """
@@ -128,7 +131,7 @@ def secant_seed(r, beta, i, nth, seeds, seedable, final, given, scene, settings,
                 continue
             rk, bk = _where(k, r, beta, given, n)
             t = _along(ri, bi, rj, bj, rk, bk)
-            if t == 0.0:
+            if t == 0.0 or (between and t > 0.0):
                 continue
             if found < nth:
                 found += 1
