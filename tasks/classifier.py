@@ -153,8 +153,12 @@ def classify_given(
 
     ``given`` is ``(r, beta, final)`` of points solved before (None: none): their
     ``final`` rows as this function returns them. With warm starts on, each point
-    is seeded by the nearest of the earlier points of the call and the given
-    points (:func:`tasks.seeds.warm_seeds`); the labels are those of
+    is seeded by the earlier points of the call and the given points
+    (:func:`tasks.seeds.warm_seeds`, up to ``GIVEN_CANDIDATES`` within
+    ``GIVEN_REACH``: an adaptive map's new points lie up to a coarse step from
+    the solved ones), first by an interpolation between two of them, then the
+    nearest's copied orbit, secant predictions and up to ``kernel.ALT_TRIES``
+    other candidates (:func:`tasks.kernel.point._warm_tries`); the labels are those of
     :func:`classify`, the other fields agree with it to the polish (about 1e-9
     of their scale), ``cycles`` excepted.
 

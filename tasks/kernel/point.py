@@ -584,7 +584,9 @@ def _warm_tries(
 
     In order: the interpolation between two solved points on a line through the
     point (:func:`tasks.kernel.secant.secant_seed` with ``between``: the midpoint
-    of a cell's edge, a cell's centre on a diagonal; error of order ``h^2``), the
+    of a cell's edge, a cell's centre on a diagonal; error of order ``h^2``, where
+    the copied orbit's is of order ``h``), or where there is none the first secant
+    extrapolation (e.g. along a grid column from the two points before it), the
     copied orbit of the nearest candidate (``first``: a point of the call, or
     ``-2 - k``: given row ``k``), up to ``SECANT_TRIES``
     secant predictions, then the copied orbits of up to ``alt_tries`` other
@@ -598,7 +600,10 @@ def _warm_tries(
     tried = np.empty((1 + SECANT_TRIES, n2))
     n_tried = 0
     spent = 0
-    if secant_seed(r, beta, i, 0, seeds, seedable, final, given, scene, settings, pred, True):
+    if secant_seed(
+        r, beta, i, 0, seeds, seedable, final, given, scene, settings, pred, True
+    ) or secant_seed(r, beta, i, 0, seeds, seedable, final, given, scene, settings, pred, False):
+        # a prediction from two solved points before any copied orbit
         accepted, used = warm_point(
             r[i], beta[i], scene, settings, out[i], final[i], pred, keep, kept
         )
@@ -712,11 +717,16 @@ def run_points_given(r, beta, scene, settings, samples, seeds, given, alt_tries)
     period-1 orbit solved outside the call (e.g. a corner of an adaptive map's
     cell, :mod:`tasks.seeds`), then its r and beta (``2 n + 4`` columns), which
     seeds the point as an earlier point would.
-    Where that warm start fails, up to ``SECANT_TRIES`` secant predictions from
-    two solved points (of the call or given) on a line through the point seed it
-    (:func:`tasks.kernel.secant.secant_seed`: the fixed point moves fast but
-    smoothly near a resonance of the held system, where the copied orbit is
-    too far for Newton's method and the held start needs hundreds of periods).
+    Before that copied orbit, a prediction from two solved points (of the call
+    or given) on a line through the point seeds it (the interpolation where the
+    point lies between them, else an extrapolation), and after it up to
+    ``SECANT_TRIES`` more such secant predictions
+    (:func:`tasks.kernel.secant.secant_seed`: second-order accurate where the
+    copied orbit is first-order; the fixed point moves fast but smoothly near a
+    resonance of the held system, where the copied orbit is too far for
+    Newton's method and the held start needs hundreds of periods), then the
+    copied orbits of up to ``alt_tries`` other candidates (:func:`_warm_tries`;
+    :data:`ALT_TRIES` for an adaptive map's point lists, 0 elsewhere).
     A point the warm start does not settle, or whose orbit then fails the orbit
     invariant, is classified from the held start (:func:`simulate_point`)
     exactly as without warm starts, and its period-1 motion is then polished
