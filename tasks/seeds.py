@@ -41,7 +41,7 @@ _LOOK = 12
 #: seed them: a failed warm start costs one or two periods, the held start it
 #: saves up to hundreds (benchmarks/bench_refine_seeded.py).
 GIVEN_REACH = 4.0
-GIVEN_CANDIDATES = 6
+GIVEN_CANDIDATES = 8
 
 
 def warm_coordinates(r: np.ndarray, beta: np.ndarray, lambda_max: float) -> np.ndarray:

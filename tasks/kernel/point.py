@@ -95,7 +95,7 @@ SECANT_TRIES = 2
 # before the held start (``alt_tries`` of :func:`run_points_given`; none in a dense
 # grid, whose chain of neighbours one step apart rarely needs them: there they
 # cost more periods than they save, benchmarks/bench_refine_seeded.py).
-ALT_TRIES = 3
+ALT_TRIES = 5
 # The polish of a converged period-1 orbit (:func:`polish_point`): residual of the
 # Poincare map sought, relative to the motion (far below ``section_rtol``: the fixed
 # point then no longer depends on where the search started), and Newton steps. The
