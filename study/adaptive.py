@@ -76,8 +76,11 @@ PARTIAL_BELOW = 4
 #: 10-20 %, benchmarks/bench_adaptive.py --cluster).
 MIN_LIST = 256
 #: Solved points (nearest first, :func:`tasks.seeds.grid_neighbours`) whose orbits are
-#: sent with a point list to seed each of its points (one contact, warm starts on).
-GIVEN_PER_POINT = 2
+#: sent with a point list to seed each of its points (one contact, warm starts on):
+#: four, so that a cell's middle finds two corners to interpolate between and a
+#: point next to a change of regime a seed on its own side (2 cost 4 % more periods on
+#: the 6DOF ground-m5 map, as many on Fig. 4: benchmarks/bench_refine_seeded.py).
+GIVEN_PER_POINT = 4
 #: A point list of at most this many points is computed in the client's thread
 #: (:meth:`AdaptivePlan.compute_here`): at the end of a refinement, boundaries are
 #: followed by chains of lists of a few points, each waiting for the one before, and

@@ -11,7 +11,7 @@ from tasks.fidelity import Settings, resolve
 from tasks.model import SceneModes, scene_modes
 from tasks.result import DESIGN_FIELDS, FIELDS, ClassifyResult
 from tasks.scene import Scene
-from tasks.seeds import can_seed, warm_seeds
+from tasks.seeds import CANDIDATES, GIVEN_CANDIDATES, GIVEN_REACH, can_seed, warm_seeds
 
 _IC_CODES = {name: code for code, name in regimes.INITIAL_CONDITIONS.items()}
 
@@ -153,8 +153,12 @@ def classify_given(
 
     ``given`` is ``(r, beta, final)`` of points solved before (None: none): their
     ``final`` rows as this function returns them. With warm starts on, each point
-    is seeded by the nearest of the earlier points of the call and the given
-    points (:func:`tasks.seeds.warm_seeds`); the labels are those of
+    is seeded by the earlier points of the call and the given points
+    (:func:`tasks.seeds.warm_seeds`, up to ``GIVEN_CANDIDATES`` within
+    ``GIVEN_REACH``: an adaptive map's new points lie up to a coarse step from
+    the solved ones), first by an interpolation between two of them, then the
+    nearest's copied orbit, secant predictions and up to ``kernel.ALT_TRIES``
+    other candidates (:func:`tasks.kernel.point._warm_tries`); the labels are those of
     :func:`classify`, the other fields agree with it to the polish (about 1e-9
     of their scale), ``cycles`` excepted.
 
@@ -163,11 +167,12 @@ def classify_given(
     period-1 orbit that can seed a neighbour (NaN rows elsewhere, and everywhere
     without warm starts).
     """
-    return _classify(scene, r, beta, fidelity, settings, given)
+    return _classify(scene, r, beta, fidelity, settings, given, True)
 
 
-def _classify(scene, r, beta, fidelity, settings, given):
-    """:func:`classify_given` (``settings``: the overrides, a dict)."""
+def _classify(scene, r, beta, fidelity, settings, given, from_given=False):
+    """:func:`classify_given` (``settings``: the overrides, a dict; ``from_given``:
+    called as :func:`classify_given`, whose points take seeds from farther)."""
     if not isinstance(scene, Scene):
         raise ValueError(f"scene: must be a tasks.Scene, got {type(scene).__name__}")
     if not isinstance(fidelity, str):
@@ -190,15 +195,18 @@ def _classify(scene, r, beta, fidelity, settings, given):
     n = scene_args[0].shape[0]
     g_r, g_beta, g_final = given if given is not None else (None, None, np.zeros((0, 2 * n + 2)))
     if first[-1]:
-        seeds = warm_seeds(flat_r, flat_beta, float(scene_args[5][-1]), g_r, g_beta)
+        # an adaptive map's points lie farther from their seeds (tasks.seeds)
+        wide = (GIVEN_REACH, GIVEN_CANDIDATES) if from_given else (1.0, CANDIDATES)
+        seeds = warm_seeds(flat_r, flat_beta, float(scene_args[5][-1]), g_r, g_beta, *wide)
     else:
         seeds = np.full((flat_r.size, 0), -1, dtype=np.int64)
     g_final = np.asarray(g_final, dtype=np.float64).reshape(-1, 2 * n + 2)
     if given is not None:  # each given orbit's point after its row (tasks.kernel.secant)
         g_final = np.column_stack([g_final, np.ravel(g_r), np.ravel(g_beta)])
     g_final = np.ascontiguousarray(g_final).reshape(-1, 2 * n + 4)
+    alt_tries = kernel.ALT_TRIES if from_given else 0
     out, final, design = kernel.run_points_given(
-        flat_r, flat_beta, scene_args, first, samples, seeds, g_final
+        flat_r, flat_beta, scene_args, first, samples, seeds, g_final, alt_tries
     )
     final[~(first[-1] & can_seed(out, flat_beta))] = np.nan
     design = design if resolved.design else None

@@ -35,6 +35,13 @@ WARM_STEP = 0.2
 CANDIDATES = 4
 #: Nearest points looked at per point (before and after it in the call).
 _LOOK = 12
+#: Reach (in the units of :func:`warm_coordinates`) and candidate seeds per point of
+#: :func:`tasks.classifier.classify_given`, whose points (an adaptive map's new
+#: points) lie up to a coarse step (16 grid steps) from the solved points that
+#: seed them: a failed warm start costs one or two periods, the held start it
+#: saves up to hundreds (benchmarks/bench_refine_seeded.py).
+GIVEN_REACH = 4.0
+GIVEN_CANDIDATES = 8
 
 
 def warm_coordinates(r: np.ndarray, beta: np.ndarray, lambda_max: float) -> np.ndarray:
@@ -52,12 +59,14 @@ def warm_seeds(
     lambda_max: float,
     given_r: np.ndarray | None = None,
     given_beta: np.ndarray | None = None,
+    reach: float = 1.0,
+    candidates: int = CANDIDATES,
 ) -> np.ndarray:
-    """Candidate seeds of every point: ``(n, CANDIDATES)`` indices of earlier points.
+    """Candidate seeds of every point: ``(n, candidates)`` indices of earlier points.
 
-    Row ``i`` lists the points before ``i`` (index below ``i``) within distance 1
-    in the scaled coordinates of :func:`warm_coordinates` (the larger of the two
-    differences), nearest first, padded with -1. Points at ``beta = 0`` neither
+    Row ``i`` lists the points before ``i`` (index below ``i``) within distance
+    ``reach`` in the scaled coordinates of :func:`warm_coordinates` (the larger of
+    the two differences), nearest first, padded with -1. Points at ``beta = 0`` neither
     seed nor are seeded (linear, no search). ``lambda_max`` is the largest
     eigenvalue of the sliding system (``scene_modes(...).kernel_args()[5][-1]``).
 
@@ -69,7 +78,7 @@ def warm_seeds(
     r = np.asarray(r, dtype=np.float64).ravel()
     beta = np.asarray(beta, dtype=np.float64).ravel()
     n = r.size
-    seeds = np.full((n, CANDIDATES), -1, dtype=np.int64)
+    seeds = np.full((n, candidates), -1, dtype=np.int64)
     live = np.flatnonzero(beta > 0.0)
     m = 0 if given_r is None else np.asarray(given_r).size
     if live.size < (2 if m == 0 else 1):
@@ -81,13 +90,13 @@ def warm_seeds(
         g_beta = np.asarray(given_beta, dtype=np.float64).ravel()
         coords = np.concatenate([coords, warm_coordinates(g_r, g_beta, lambda_max)])
         index = np.concatenate([live, -2 - np.arange(m)])  # given: -2 - k
-    k = min(_LOOK + min(m, CANDIDATES), index.size)
+    k = min(_LOOK + min(m, candidates), index.size)
     dist, near = cKDTree(coords).query(coords[: live.size], k=k, p=np.inf)
     dist, near = dist.reshape(live.size, k), near.reshape(live.size, k)
     index = index[near]  # the neighbours' indices in the call (or given), nearest first
     earlier = (index >= 0) & (index < live[:, None])
-    ok = (dist <= 1.0) & (earlier | (index <= -2))
-    first = np.argsort(~ok, axis=1, kind="stable")[:, :CANDIDATES]  # kept, nearest first
+    ok = (dist <= reach) & (earlier | (index <= -2))
+    first = np.argsort(~ok, axis=1, kind="stable")[:, :candidates]  # kept, nearest first
     taken = np.where(np.take_along_axis(ok, first, 1), np.take_along_axis(index, first, 1), -1)
     seeds[live, : taken.shape[1]] = taken
     return seeds

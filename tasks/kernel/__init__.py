@@ -99,6 +99,7 @@ with numba_cache.kernel_cache():
     )
     from tasks.kernel.orbit import ORBIT_RTOL, orbit_holds
     from tasks.kernel.point import (
+        ALT_TRIES,
         polish_point,
         run_points,
         run_points_design,
@@ -113,6 +114,7 @@ with numba_cache.kernel_cache():
     from tasks.kernel.starts import _energy, held_margin, start_phase
 
 __all__ = [
+    "ALT_TRIES",
     "CTX_B",
     "CTX_BETA",
     "CTX_K",

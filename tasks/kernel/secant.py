@@ -38,6 +38,9 @@ from tasks.kernel.layout import LEAF, N_STATS, ST_STATUS, STATUS_OK, TWO_PI
 #: as ``k`` is), and the collinearity the three points must meet (sine of the angle).
 SECANT_REACH = 2.0
 SECANT_SINE = 1e-9
+#: What :func:`_candidate` returns past the last candidate (no point's name: -2 is
+#: given row 0).
+PAST_END = -(1 << 62)
 
 
 @njit(**LEAF)
@@ -85,7 +88,7 @@ def _candidate(seeds, i, q, c):
     (``c = 0``: along a grid line or a trace in the call's order), then ``q``'s
     candidate seeds (row ``q`` of ``seeds``, nearest first, given points among
     them), then ``i``'s; for a given ``q`` the point before ``i`` and ``i``'s
-    candidates. -1 where none, -2 past the end."""
+    candidates. -1 where none, ``PAST_END`` past the end."""
     m = seeds.shape[1]
     row = q if q >= 0 else i
     if c == 0:
@@ -94,11 +97,11 @@ def _candidate(seeds, i, q, c):
         return seeds[row, c - 1]
     if q != i and q >= 0 and c <= 2 * m:
         return seeds[i, c - 1 - m]
-    return -2
+    return PAST_END
 
 
 @njit(cache=True)
-def secant_seed(r, beta, i, nth, seeds, seedable, final, given, scene, settings, pred):
+def secant_seed(r, beta, i, nth, seeds, seedable, final, given, scene, settings, pred, between):
     """The ``nth`` (0, 1, ...) secant prediction of point ``i``'s orbit (into ``pred``).
 
     The pairs ``(j, k)`` are taken in order: ``j`` each point that may lie on a
@@ -108,7 +111,10 @@ def secant_seed(r, beta, i, nth, seeds, seedable, final, given, scene, settings,
     line through ``i`` and ``j`` (:func:`_along`). Where ``k``'s section differs
     from ``j``'s, ``k``'s orbit is carried to ``j``'s section (a part of a period
     of ``k``'s own motion); the state there must lie in the same kind of phase
-    (stuck or sliding) as ``j``'s.
+    (stuck or sliding) as ``j``'s. With ``between`` only interpolations count
+    (``i`` between ``j`` and ``k``: ``t < 0``, error of order ``h^2`` where the
+    copied seed's is of order ``h``; :func:`tasks.kernel.point.run_points_given`
+    tries the first of them before any copied seed).
 
     Returns True where ``pred`` holds a prediction (phase and section of ``j``).
     """
@@ -122,13 +128,13 @@ def secant_seed(r, beta, i, nth, seeds, seedable, final, given, scene, settings,
         rj, bj = _where(j, r, beta, given, n)
         for c in range(2 * seeds.shape[1] + 1):
             k = _candidate(seeds, i, j, c)
-            if k == -2:
+            if k == PAST_END:
                 break
             if k == j or not _solved(k, i, seedable, given):
                 continue
             rk, bk = _where(k, r, beta, given, n)
             t = _along(ri, bi, rj, bj, rk, bk)
-            if t == 0.0:
+            if t == 0.0 or (between and t > 0.0):
                 continue
             if found < nth:
                 found += 1
