@@ -158,7 +158,7 @@ def classify_given(
     ``GIVEN_REACH``: an adaptive map's new points lie up to a coarse step from
     the solved ones), first by an interpolation between two of them, then the
     nearest's copied orbit, secant predictions and up to ``kernel.ALT_TRIES``
-    other candidates (:func:`tasks.kernel.point._warm_tries`); the labels are those of
+    other candidates (:func:`tasks.kernel.batch._warm_tries`); the labels are those of
     :func:`classify`, the other fields agree with it to the polish (about 1e-9
     of their scale), ``cycles`` excepted.
 

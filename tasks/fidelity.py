@@ -27,7 +27,7 @@ growth_factor      1e3     1e4       1e5      section growth (vs. start) flagged
 
 What is computed (the same in every preset): ``warm`` (True) seeds each point's
 steady-state search with the converged orbit of a close point solved before it
-in the same call (``tasks.seeds``, ``tasks.kernel.point.run_points_seeded``;
+in the same call (``tasks.seeds``, ``tasks.kernel.batch.run_points_seeded``;
 dense grid blocks, point lists of adaptive maps, traced columns), and polishes
 every moving period-1 orbit, seeded or not, to the fixed point of its Poincare
 map (residual 1e-12 of the motion). The labels (regime, stops, period, creep

@@ -1,7 +1,7 @@
 """Warm starts along a map: which already solved points may seed each point's search.
 
 A point's steady-state search can start from the converged orbit of a point
-solved before it in the same call (:func:`tasks.kernel.point.run_points_seeded`),
+solved before it in the same call (:func:`tasks.kernel.batch.run_points_seeded`),
 if the two orbits are close enough for a few Newton steps on the Poincare map to
 follow one to the other. How far an orbit moves is measured in two scaled
 coordinates: the phase the fastest free mode turns through in one period of the
@@ -73,7 +73,7 @@ def warm_seeds(
     ``given_r``, ``given_beta``: points solved outside the call (moving period-1
     orbits, e.g. the corners of an adaptive map's cells) that may seed any point
     of the call, ranked with the earlier points by distance; given point ``k``
-    is listed as ``-2 - k`` (:func:`tasks.kernel.point.run_points_given`).
+    is listed as ``-2 - k`` (:func:`tasks.kernel.batch.run_points_given`).
     """
     r = np.asarray(r, dtype=np.float64).ravel()
     beta = np.asarray(beta, dtype=np.float64).ravel()

@@ -20,6 +20,7 @@ from numba import njit
 from tasks import Scene
 from tasks.classifier import scene_modes_cached, settings_args, start_codes
 from tasks.fidelity import resolve
+from tasks.kernel.batch import run_points_seeded
 from tasks.kernel.context import _context
 from tasks.kernel.layout import (
     CTX_B,
@@ -32,7 +33,6 @@ from tasks.kernel.layout import (
     OUT_REGIME,
     REC_X,
 )
-from tasks.kernel.point import run_points_seeded
 from tasks.kernel.shooting import (
     REC_ROWS,
     _exact,

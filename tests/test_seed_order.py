@@ -1,4 +1,4 @@
-"""Which seed a point of an adaptive map tries first (tasks.kernel.point._warm_tries).
+"""Which seed a point of an adaptive map tries first (tasks.kernel.batch._warm_tries).
 
 Fig. 4's scene (2DOF, ground contact on m_1, gamma = kappa = 1). A point between
 two solved points on a line is seeded first by the interpolation of their orbits

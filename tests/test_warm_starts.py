@@ -1,4 +1,4 @@
-"""Warm starts along a map (tasks.kernel.point.run_points_seeded) change the cost, never
+"""Warm starts along a map (tasks.kernel.batch.run_points_seeded) change the cost, never
 the labels, and the other fields only far below the steady-state tolerance.
 
 Every periodic steady state of a point has the same regime, stops and stick

@@ -34,9 +34,11 @@ Modules, one job each (dependencies point down the list):
 * :mod:`~tasks.kernel.design`: amplitudes, contact force amplitude, dissipation;
 * :mod:`~tasks.kernel.point`: the steady-state search of a point from the held start
   (:func:`simulate_point`) or from a neighbour's orbit (:func:`warm_point`), the polish
-  of its orbit (:func:`polish_point`), and of many (:func:`run_points`, with the design
-  pass on the orbit check's replay: :func:`run_points_design`, and seeded by solved
-  neighbours: :func:`run_points_seeded`).
+  of its orbit (:func:`polish_point`);
+* :mod:`~tasks.kernel.batch`: the search of many points in order (:func:`run_points`,
+  with the design pass on the orbit check's replay: :func:`run_points_design`, and
+  seeded by solved neighbours, best seed first: :func:`run_points_seeded`,
+  :func:`run_points_given`).
 
 Everything is compiled with numba (``cache=True``); with ``NUMBA_DISABLE_JIT=1``
 the same code runs as plain Python (slowly). numba's on-disk cache checks only
@@ -53,6 +55,13 @@ from __future__ import annotations
 from tasks import numba_cache
 
 with numba_cache.kernel_cache():
+    from tasks.kernel.batch import (
+        ALT_TRIES,
+        run_points,
+        run_points_design,
+        run_points_given,
+        run_points_seeded,
+    )
     from tasks.kernel.context import _context
     from tasks.kernel.creep import creep_settled, creep_threshold
     from tasks.kernel.cycle import run_cycle
@@ -98,16 +107,7 @@ with numba_cache.kernel_cache():
         TWO_PI,
     )
     from tasks.kernel.orbit import ORBIT_RTOL, orbit_holds
-    from tasks.kernel.point import (
-        ALT_TRIES,
-        polish_point,
-        run_points,
-        run_points_design,
-        run_points_given,
-        run_points_seeded,
-        simulate_point,
-        warm_point,
-    )
+    from tasks.kernel.point import polish_point, simulate_point, warm_point
     from tasks.kernel.propagation import derivative_bounds, evaluate, event_function
     from tasks.kernel.records import sample_states, trace_cycles
     from tasks.kernel.shooting import SETTLE_CYCLES, SETTLE_PHASES, newton_settle, settle_at_phases

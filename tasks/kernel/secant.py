@@ -16,7 +16,7 @@ where the copied seed ``X_j`` is first.
 A point is named by an index ``q``: ``q >= 0`` a point of the call (``r[q]``,
 ``beta[q]``, ``final[q]``), ``q <= -2`` row ``-2 - q`` of ``given`` (a moving
 period-1 orbit solved outside the call: ``final`` row, then its r and beta,
-:func:`tasks.kernel.point.run_points_given`).
+:func:`tasks.kernel.batch.run_points_given`).
 
 The prediction is only a seed: :func:`tasks.kernel.point.warm_point` accepts
 the orbit it leads to by the same tests as any warm start, so neither the
@@ -113,7 +113,7 @@ def secant_seed(r, beta, i, nth, seeds, seedable, final, given, scene, settings,
     of ``k``'s own motion); the state there must lie in the same kind of phase
     (stuck or sliding) as ``j``'s. With ``between`` only interpolations count
     (``i`` between ``j`` and ``k``: ``t < 0``, error of order ``h^2`` where the
-    copied seed's is of order ``h``; :func:`tasks.kernel.point.run_points_given`
+    copied seed's is of order ``h``; :func:`tasks.kernel.batch.run_points_given`
     tries the first of them before any copied seed).
 
     Returns True where ``pred`` holds a prediction (phase and section of ``j``).
