@@ -67,7 +67,9 @@ def test_secant_seed_settles_where_the_copied_seed_fails():
     pred = np.empty(2 * n + 2)
     seedable = np.array([True, True, False])
     given = np.zeros((0, 2 * n + 4))
-    assert secant_seed(r, beta, 2, 0, seeds, seedable, all_final, given, args, settings, pred, False)
+    assert secant_seed(
+        r, beta, 2, 0, seeds, seedable, all_final, given, args, settings, pred, False
+    )
     np.testing.assert_array_equal(pred[2 * n :], final[1, 2 * n :])  # j's phase and section
     assert np.max(np.abs(pred[: 2 * n] - final[1, : 2 * n])) > 0.0
     ok, used = kernel.warm_point(r[2], beta[2], args, settings, out_i, final_i, pred, keep, kept)
