@@ -612,8 +612,8 @@ class AdaptivePlan(ScenePlan):
         return tile_layout(self.spec.plane_shape[0], self.spec.coarse_step, self.worker_threads)
 
     def _tile(self, pl: _Plane, rows: list[tuple[int, int]], n_tiles: int) -> None:
-        """The tiles ``rows`` to hand out first (out of ``n_tiles``); the hint is computed
-        now (each tile refines with its part)."""
+        """The tiles ``rows`` to hand out first (out of ``n_tiles``), in the order of r;
+        the hint is computed now (each tile refines with its part)."""
         pl.tiled = n_tiles
         if not n_tiles:
             return

@@ -27,9 +27,13 @@ import numpy as np
 from tasks.adaptive import coarse_nodes
 from tasks.tiles import strips
 
-#: Tiles per worker thread (the plane's first units): with two, a thread that ends
-#: its tile early takes another while the slowest computes.
-TILES_PER_THREAD = 2
+#: Tiles per worker thread (the plane's first units): a thread that ends its tile
+#: early takes another (queued by the scheduler) while the slowest computes. Their
+#: costs differ by up to 6x (Fig. 4 at 1000 x 500: the tiles of small r cost most);
+#: with 2 workers, 4 per thread measured 0.65 s wall on Fig. 4 and 1.32 s on the 6DOF
+#: ground-m5 map, 2 per thread 0.65 s and 1.76 s, 8 per thread 0.68 s and 1.43 s
+#: (benchmarks/bench_adaptive.py --cluster, same run).
+TILES_PER_THREAD = 4
 #: Fewest coarse cells along r per tile: a plane with fewer than two tiles of this
 #: width is refined by point lists only (its one tile would be the whole plane).
 MIN_TILE_CELLS = 2
