@@ -143,6 +143,9 @@ class _Plane:
     pending: dict = field(default_factory=dict)  # tile key -> rows, not arrived yet
     held: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))  # in them
     tiled: int = 0  # tiles of the plane (0: point lists only)
+    tiles_done: int = 0  # tiles computed by this run
+    tiles_arrived: list = field(default_factory=list)  # (idx, arrays, first row) not in ``ref``
+    first_row: np.ndarray | None = None  # point -> first row of the tile its fields are from
     batches: int = 0
     here: int = 0  # point lists computed by the client (AdaptivePlan.compute_here)
     cost: list = field(default_factory=lambda: [0.0, 0])  # compute seconds, points so far
@@ -401,12 +404,9 @@ class AdaptivePlan(ScenePlan):
             idx = np.concatenate([i for i, _ in pl.arrived])
             arrays = {k: np.concatenate([a[k] for _, a in pl.arrived]) for k in pl.arrived[0][1]}
             pl.arrived = []
-            if pl.tiled:  # tiles meeting at an edge both simulate its points: the first kept
-                new = np.zeros(idx.size, dtype=bool)
-                new[np.unique(idx, return_index=True)[1]] = True
-                new &= ~pl.ref.simulated.reshape(-1)[idx]
-                idx, arrays = idx[new], {k: v[new] for k, v in arrays.items()}
             self._refinement(pl).accept(idx, arrays)
+        if pl.tiles_arrived:
+            self._accept_tiles(pl)
         while True:
             wave_open = self.barriers and (pl.outstanding or pl.todo.size)
             if pl.phase == "refine" and not wave_open:
@@ -428,6 +428,28 @@ class AdaptivePlan(ScenePlan):
             else:
                 self._put(pl, idx, arrays)
             pl.reused += idx.size
+
+    def _accept_tiles(self, pl: _Plane) -> None:
+        """The points of the tiles arrived since the last look to the refinement. A point
+        of two tiles (on the row they share) keeps the fields of the tile of smaller r,
+        whichever arrives first: they agree to the polish only (other seeds), and a
+        resumed run, which gets every saved tile at once, makes the same map."""
+        idx = np.concatenate([i for i, _, _ in pl.tiles_arrived])
+        arrays = {
+            k: np.concatenate([a[k] for _, a, _ in pl.tiles_arrived])
+            for k in pl.tiles_arrived[0][1]
+        }
+        first = np.concatenate([np.full(i.size, r0) for i, _, r0 in pl.tiles_arrived])
+        pl.tiles_arrived = []
+        order = np.lexsort((first, idx))  # by point, then by the tile's first row
+        idx, first = idx[order], first[order]
+        keep = np.ones(idx.size, dtype=bool)
+        keep[1:] = idx[1:] != idx[:-1]
+        keep[keep] = first[keep] < pl.first_row[idx[keep]]
+        take = order[keep]
+        idx = idx[keep]
+        pl.first_row[idx] = first[keep]
+        self._refinement(pl).accept(idx, {k: v[take] for k, v in arrays.items()})
 
     @staticmethod
     def _hold(pl: _Plane, new: np.ndarray) -> np.ndarray:
@@ -498,11 +520,14 @@ class AdaptivePlan(ScenePlan):
         if isinstance(unit, Tile):  # every point it simulated, as an arrived point list
             index = np.asarray(arrays["index"], dtype=np.int64)
             pl.pending.pop(unit.key, None)
+            pl.tiles_done += 1
             pl.cost[0] += float(arrays["seconds"])
             pl.cost[1] += index.size
             if pl.orbits is not None and "final" in arrays:
                 pl.orbits.add(index, arrays["final"])
-            pl.arrived.append((index, {k: arrays[k] for k in self.point_fields()}))
+            pl.tiles_arrived.append(
+                (index, {k: arrays[k] for k in self.point_fields()}, unit.rows[0])
+            )
             return
         pl.cost[0] += float(arrays["seconds"])
         pl.cost[1] += unit.n_points
@@ -589,7 +614,9 @@ class AdaptivePlan(ScenePlan):
         layout = self._tile_layout(pl, untiled=bool(idx) and not tiles)
         for rows, (index, arrays) in tiles.items():
             if rows in layout:  # a finished tile: its points arrive at once
-                pl.arrived.append((index, {k: arrays[k] for k in self.point_fields()}))
+                pl.tiles_arrived.append(
+                    (index, {k: arrays[k] for k in self.point_fields()}, rows[0])
+                )
                 pl.reused += index.size
             else:  # a tile of another layout (other worker threads): answers requests
                 idx.append(index)
@@ -617,6 +644,7 @@ class AdaptivePlan(ScenePlan):
         pl.tiled = n_tiles
         if not n_tiles:
             return
+        pl.first_row = np.full(pl.ref.n_points, np.iinfo(np.int64).max, dtype=np.int64)
         hint = self._refinement(pl).hint
         for i0, i1 in rows:
             task = tile_task(pl.ident["physics"], self.settings, self._axes, (i0, i1), hint)
@@ -641,8 +669,8 @@ class AdaptivePlan(ScenePlan):
             f"{self._where(pl)}: {n_sim:,} of {ref.n_points:,} points simulated "
             f"({100 * n_sim / ref.n_points:.2f} %, verification included) in "
             f"{len(ref.level_sizes())} levels, {time.perf_counter() - pl.t0:.1f} s; "
-            f"{pl.computed} point lists computed ({pl.here} by the client"
-            f"{f', {pl.tiled} tiles' if pl.tiled else ''}), "
+            f"{pl.computed - pl.tiles_done} point lists computed ({pl.here} by the client), "
+            f"{f'{pl.tiles_done} of {pl.tiled} tiles computed, ' if pl.tiled else ''}"
             f"{pl.reused:,} saved points reused; "
             f"{summary.line()}",
             always=True,
