@@ -24,6 +24,12 @@ any computing (:meth:`AdaptivePlan.prepare`), and a point list's indices
 against its key when its plane starts: a damaged one is discarded, named and
 computed again in the same run.
 
+A plane of one contact with warm starts starts with tiles instead
+(:mod:`study.tiles`): strips of whole coarse cells, each refined by one worker
+alone; their points arrive as a point list's do, and point lists follow for
+what they left unsettled, then the verification sample. A finished tile is
+saved under its own key and reused by a rerun.
+
 The result has the layout of a grid scene (dims ``(gamma, kappa, beta, r)``,
 every variable of :data:`tasks.result.FIELDS`) plus ``simulated`` and
 ``verification`` (:data:`tasks.adaptive.ADAPTIVE_FIELDS`) and attributes with
