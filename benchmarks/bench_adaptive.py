@@ -214,6 +214,9 @@ BEFORE = [
     ["study.adaptive", "AdaptivePlan.seed_lists", False],
     ["study.adaptive", "AdaptivePlan.min_list", 64],
 ]
+#: ``--untiled``: the adaptive study without tiles (study.tiles): the coarse lattice as
+#: point lists.
+UNTILED = [["study.adaptive", "AdaptivePlan.tiles", False]]
 #: ``--barriers``: the old wave-by-wave refinement.
 BARRIERS = [["study.adaptive", "AdaptivePlan.barriers", True]]
 RUNNER = Path(__file__).resolve().parent / "study_runner.py"
@@ -336,6 +339,8 @@ def cluster_main(args, n_r: int, n_beta: int) -> int:
         befores: list[tuple[str, Runner, list | None]] = []
         if args.before:
             befores.append(("before", here, BEFORE))
+        if args.untiled:
+            befores.append(("untiled", here, UNTILED))
         if other is not None:
             befores.append((f"{args.code}", other, None))
         for sc in scenes:
@@ -598,6 +603,11 @@ def main(argv: list[str] | None = None) -> int:
         "--before",
         action="store_true",
         help="--cluster: also the adaptive study without corner seeds, lists of 64",
+    )
+    ap.add_argument(
+        "--untiled",
+        action="store_true",
+        help="--cluster: also the adaptive study without tiles (study.tiles), same run",
     )
     ap.add_argument("--example", type=int, default=0, help="time the CLI on the example N times")
     ap.add_argument(

@@ -9,7 +9,7 @@ flight, :data:`PARTIAL_BELOW`, so workers never wait for a full one), each
 keyed by the plane, its length and a hash of its points' r and beta values, and
 saved in the work folder with the points' indices as it arrives. Each point
 list goes out with the solved orbits of the points nearest to its points (the
-corners of the cells that asked for them, :class:`_Orbits`), which seed their
+corners of the cells that asked for them, :class:`tasks.orbits.Orbits`), which seed their
 searches (warm starts, :mod:`tasks.seeds`): fewer periods, the same labels, the
 other fields equal to the polish. The result
 does not depend on the order in which point lists arrive, so a rerun after an
@@ -23,6 +23,12 @@ planes and point lists (their exact length, from the key) are verified before
 any computing (:meth:`AdaptivePlan.prepare`), and a point list's indices
 against its key when its plane starts: a damaged one is discarded, named and
 computed again in the same run.
+
+A plane of one contact with warm starts starts with tiles instead
+(:mod:`study.tiles`): strips of whole coarse cells, each refined by one worker
+alone; their points arrive as a point list's do, and point lists follow for
+what they left unsettled, then the verification sample. A finished tile is
+saved under its own key and reused by a rerun.
 
 The result has the layout of a grid scene (dims ``(gamma, kappa, beta, r)``,
 every variable of :data:`tasks.result.FIELDS`) plus ``simulated`` and
@@ -49,6 +55,7 @@ from study.cost import chunk_target, spec_factor
 from study.definition import SceneSpec, Study
 from study.plans import CHUNK_FORMAT, SECONDS, WAIT, ScenePlan
 from study.store import discard
+from study.tiles import Tile, tile_key, tile_layout, tile_rows, tile_task
 from study.verify import Expected
 from tasks.adaptive import (
     ADAPTIVE_FIELDS,
@@ -56,8 +63,10 @@ from tasks.adaptive import (
     VerificationSummary,
     disagreement_upper_bound,
 )
-from tasks.seeds import grid_neighbours, grid_offsets
+from tasks.orbits import GIVEN_PER_POINT, Orbits  # noqa: F401 - GIVEN_PER_POINT: its home was here
 from tasks.stream import StreamRefinement
+
+_Orbits = Orbits  # its former name here (benchmarks, tests)
 
 #: Seed of the verification sample (fixed: a rerun draws the same sample).
 VERIFY_SEED = 0
@@ -75,12 +84,6 @@ PARTIAL_BELOW = 4
 #: 256 rather than 64 halves the point lists of a 1000 x 500 map, and its CPU falls by
 #: 10-20 %, benchmarks/bench_adaptive.py --cluster).
 MIN_LIST = 256
-#: Solved points (nearest first, :func:`tasks.seeds.grid_neighbours`) whose orbits are
-#: sent with a point list to seed each of its points (one contact, warm starts on):
-#: four, so that a cell's middle finds two corners to interpolate between and a
-#: point next to a change of regime a seed on its own side (2 cost 4 % more periods on
-#: the 6DOF ground-m5 map, as many on Fig. 4: benchmarks/bench_refine_seeded.py).
-GIVEN_PER_POINT = 4
 #: A point list of at most this many points is computed in the client's thread
 #: (:meth:`AdaptivePlan.compute_here`): at the end of a refinement, boundaries are
 #: followed by chains of lists of a few points, each waiting for the one before, and
@@ -120,55 +123,6 @@ class PointList:
         return {"index": self.idx}
 
 
-class _Orbits:
-    """The solved moving period-1 orbits of a plane in this run (section state, phase,
-    section phase: ``final`` of :func:`tasks.classifier.classify_given`), by point.
-
-    A new point list is sent the orbits of the solved points nearest to its points
-    (the corners of the cells that asked for them), which seed their searches as
-    an earlier point of the list would: fewer periods, the same labels, the other
-    fields equal to the polish (:mod:`tasks.seeds`). Not saved: a resumed run seeds
-    only from what it solves itself.
-    """
-
-    def __init__(self, shape: tuple[int, int], reach: int) -> None:
-        self.shape = shape
-        self.row = np.full(shape[0] * shape[1], -1, dtype=np.int64)  # point -> row
-        self.flat = np.zeros(0, dtype=np.int64)  # row -> point
-        self.state = np.zeros((0, 0))
-        self.n = 0
-        self.offsets = grid_offsets(reach)
-
-    def add(self, idx: np.ndarray, final: np.ndarray) -> None:
-        """Keep the orbits of the points ``idx`` that have one (finite rows of ``final``)."""
-        ok = np.isfinite(final).all(axis=1)
-        idx, final = idx[ok], final[ok]
-        m = idx.size
-        if not m:
-            return
-        if self.n + m > self.flat.size:  # grow by doubling
-            cap = max(2 * self.flat.size, self.n + m, 1024)
-            self.flat = np.resize(self.flat, cap)
-            state = np.empty((cap, final.shape[1]))
-            if self.n:
-                state[: self.n] = self.state[: self.n]
-            self.state = state
-        self.flat[self.n : self.n + m] = idx
-        self.state[self.n : self.n + m] = final
-        self.row[idx] = np.arange(self.n, self.n + m)
-        self.n += m
-
-    def given(self, idx: np.ndarray, r: np.ndarray, beta: np.ndarray) -> tuple:
-        """``(r, beta, final)`` of the solved points nearest to the points ``idx`` (maybe
-        none), for :func:`study.compute._point_list`."""
-        rows = np.zeros(0, dtype=np.int64)
-        if self.n:
-            rows = grid_neighbours(idx, self.shape, self.row, self.offsets, GIVEN_PER_POINT)
-            rows = np.unique(rows[rows >= 0])
-        i_r, i_b = np.unravel_index(self.flat[rows], self.shape)
-        return r[i_r], beta[i_b], self.state[rows]
-
-
 @dataclass
 class _Plane:
     """The refinement of one (r, beta) plane while it runs."""
@@ -190,7 +144,14 @@ class _Plane:
     hint_due: bool = False  # the closed-form hint is computed at the first result
     inferred: bool = False  # the inferred points are filled (during the verification)
     handed: bool = False  # a point list was handed out since the last result arrived
-    orbits: _Orbits | None = None  # solved orbits that seed new point lists (warm starts)
+    orbits: Orbits | None = None  # solved orbits that seed new point lists (warm starts)
+    tiles: list = field(default_factory=list)  # tiles to hand out (study.tiles)
+    pending: dict = field(default_factory=dict)  # tile key -> rows, not arrived yet
+    held: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))  # in them
+    tiled: int = 0  # tiles of the plane (0: point lists only)
+    tiles_done: int = 0  # tiles computed by this run
+    tiles_arrived: list = field(default_factory=list)  # (idx, arrays, first row) not in ``ref``
+    first_row: np.ndarray | None = None  # point -> first row of the tile its fields are from
     batches: int = 0
     here: int = 0  # point lists computed by the client (AdaptivePlan.compute_here)
     cost: list = field(default_factory=lambda: [0.0, 0])  # compute seconds, points so far
@@ -211,7 +172,7 @@ class AdaptivePlan(ScenePlan):
     #: True: the old wave-by-wave barriers (new points only once every point list of
     #: the plane has arrived), kept for ``benchmarks/bench_adaptive.py``; same result.
     barriers: bool = False
-    #: False: no solved orbits sent with the point lists (:class:`_Orbits`), as before
+    #: False: no solved orbits sent with the point lists (:class:`tasks.orbits.Orbits`), as before
     #: they were (``benchmarks/bench_adaptive.py --before``); same labels.
     seed_lists: bool = True
     #: Fewest points of a list cut smaller than the chunk target (:data:`MIN_LIST`).
@@ -221,6 +182,8 @@ class AdaptivePlan(ScenePlan):
     local_points: int = LOCAL_POINTS
     #: Largest point list computed there while a worker thread is free.
     local_points_idle: int = LOCAL_POINTS_IDLE
+    #: False: no tiles (:mod:`study.tiles`), the coarse lattice handed out as point lists.
+    tiles: bool = True
     #: No byte shuffle in the netCDF file (:data:`study.netcdf.COMPRESSION`): inferred
     #: points repeat their cell's corner, which deflate finds better unshuffled.
     nc_shuffle: bool = False
@@ -331,8 +294,11 @@ class AdaptivePlan(ScenePlan):
         return f"{tag}-{idx.size}-{h.hexdigest()[:16]}"
 
     @staticmethod
-    def merge_group(unit: PointList) -> str:
-        """Point lists of one plane can be saved as one (:mod:`study.saving`)."""
+    def merge_group(unit: PointList | Tile) -> str:
+        """Point lists of one plane can be saved as one (:mod:`study.saving`); a tile is
+        saved alone, under its own key (a rerun knows it is done)."""
+        if isinstance(unit, Tile):
+            return unit.key
         return unit.key.rsplit("-", 2)[0]  # the plane's tag
 
     def merge(
@@ -394,6 +360,10 @@ class AdaptivePlan(ScenePlan):
     def _next_of(self, pl: _Plane, work):
         """The next point list of one plane, WAIT, or None when the plane is saved."""
         while pl.sweep in self._active:
+            if pl.tiles:  # the plane's first units (study.tiles)
+                tile = pl.tiles.pop(0)
+                pl.outstanding.add(tile.key)
+                return tile
             self._replay(pl)
             size = self._list_size(pl)
             few = len(pl.outstanding) < PARTIAL_BELOW or self.barriers
@@ -441,10 +411,14 @@ class AdaptivePlan(ScenePlan):
             arrays = {k: np.concatenate([a[k] for _, a in pl.arrived]) for k in pl.arrived[0][1]}
             pl.arrived = []
             self._refinement(pl).accept(idx, arrays)
+        if pl.tiles_arrived:
+            self._accept_tiles(pl)
         while True:
             wave_open = self.barriers and (pl.outstanding or pl.todo.size)
             if pl.phase == "refine" and not wave_open:
                 new = pl.ref.take()
+                if pl.tiled:
+                    new = self._hold(pl, new)
                 if new.size:
                     pl.todo, pl.cut = np.concatenate([pl.todo, new]), 0
             if pl.row is None or not pl.todo.size:
@@ -460,6 +434,42 @@ class AdaptivePlan(ScenePlan):
             else:
                 self._put(pl, idx, arrays)
             pl.reused += idx.size
+
+    def _accept_tiles(self, pl: _Plane) -> None:
+        """The points of the tiles arrived since the last look to the refinement. A point
+        of two tiles (on the row they share) keeps the fields of the tile of smaller r,
+        whichever arrives first: they agree to the polish only (other seeds), and a
+        resumed run, which gets every saved tile at once, makes the same map."""
+        idx = np.concatenate([i for i, _, _ in pl.tiles_arrived])
+        arrays = {
+            k: np.concatenate([a[k] for _, a, _ in pl.tiles_arrived])
+            for k in pl.tiles_arrived[0][1]
+        }
+        first = np.concatenate([np.full(i.size, r0) for i, _, r0 in pl.tiles_arrived])
+        pl.tiles_arrived = []
+        order = np.lexsort((first, idx))  # by point, then by the tile's first row
+        idx, first = idx[order], first[order]
+        keep = np.ones(idx.size, dtype=bool)
+        keep[1:] = idx[1:] != idx[:-1]
+        keep[keep] = first[keep] < pl.first_row[idx[keep]]
+        take = order[keep]
+        idx = idx[keep]
+        pl.first_row[idx] = first[keep]
+        self._refinement(pl).accept(idx, {k: v[take] for k, v in arrays.items()})
+
+    @staticmethod
+    def _hold(pl: _Plane, new: np.ndarray) -> np.ndarray:
+        """Of the ready points ``new`` and those held before, the ones to hand out: not
+        simulated, and in no tile still computing (held until it arrives: it may
+        simulate them)."""
+        points = np.concatenate([pl.held, new])
+        points = points[~pl.ref.simulated.reshape(-1)[points]]
+        i_r = points // pl.ref.shape[1]
+        inside = np.zeros(points.size, dtype=bool)
+        for i0, i1 in pl.pending.values():
+            inside |= (i_r >= i0) & (i_r <= i1)
+        pl.held = points[inside]
+        return np.sort(points[~inside]) if pl.held.size else points[~inside]
 
     def _unit(self, pl: _Plane, idx: np.ndarray) -> PointList:
         r, beta = self._axes["r"], self._axes["beta"]
@@ -488,6 +498,8 @@ class AdaptivePlan(ScenePlan):
         contact (whose simulator releases the GIL), and the simulator in numba's on-disk
         cache (the client loads it, about 0.2 s once; it never compiles it, e.g. on the
         login node of a cluster)."""
+        if isinstance(unit, Tile):  # a worker's
+            return False
         pl = self._active[unit.sweep]
         others = sum(len(p.outstanding) for p in self._active.values()) - 1  # not this one
         limit = self.local_points
@@ -510,9 +522,21 @@ class AdaptivePlan(ScenePlan):
         pl = self._active[unit.sweep]
         pl.outstanding.discard(unit.key)
         pl.computed += 1
+        pl.handed = False
+        if isinstance(unit, Tile):  # every point it simulated, as an arrived point list
+            index = np.asarray(arrays["index"], dtype=np.int64)
+            pl.pending.pop(unit.key, None)
+            pl.tiles_done += 1
+            pl.cost[0] += float(arrays["seconds"])
+            pl.cost[1] += index.size
+            if pl.orbits is not None and "final" in arrays:
+                pl.orbits.add(index, arrays["final"])
+            pl.tiles_arrived.append(
+                (index, {k: arrays[k] for k in self.point_fields()}, unit.rows[0])
+            )
+            return
         pl.cost[0] += float(arrays["seconds"])
         pl.cost[1] += unit.n_points
-        pl.handed = False
         if pl.orbits is not None and "final" in arrays:
             pl.orbits.add(unit.idx, arrays["final"])
         if unit.phase == "verify":
@@ -552,7 +576,7 @@ class AdaptivePlan(ScenePlan):
         pl.hint_due = spec.hint != "none" and not contacts.is_multi(spec.structure)
         warm = self.settings.get("warm", True) and self.seed_lists
         if warm and not contacts.is_multi(spec.structure):
-            pl.orbits = _Orbits(spec.plane_shape, spec.coarse_step)
+            pl.orbits = Orbits(spec.plane_shape, spec.coarse_step)
         self._load_saved(pl, work)
         return pl
 
@@ -567,8 +591,9 @@ class AdaptivePlan(ScenePlan):
 
     def _load_saved(self, pl: _Plane, work) -> None:
         """The saved point lists of a plane (verified in :meth:`prepare`), their indices
-        checked against their keys; the plane's requests are answered from them."""
-        idx, parts = [], []
+        checked against their keys; the plane's requests are answered from them. Its
+        tiles (:meth:`_tile`): those saved arrive at once, the others are handed out."""
+        idx, parts, tiles = [], [], {}
         for key in work.keys(self.spec.name):
             if not key.startswith(pl.tag + "-"):
                 continue
@@ -576,6 +601,12 @@ class AdaptivePlan(ScenePlan):
             index = np.asarray(arrays["index"], dtype=np.int64)
             n = pl.ref.n_points
             inside = index.size and index.min() >= 0 and index.max() < n
+            rows = tile_rows(pl.tag, key)
+            if inside and rows is not None:  # a tile's points lie in its rows
+                i_r = index // pl.ref.shape[1]
+                if i_r.min() >= rows[0] and i_r.max() <= rows[1]:
+                    tiles[rows] = (index, arrays)
+                    continue
             if not (inside and self._list_key(pl.tag, index) == key):
                 path = work.chunk_path(self.spec.name, key)
                 discard(path)
@@ -586,11 +617,47 @@ class AdaptivePlan(ScenePlan):
                 continue
             idx.append(index)
             parts.append(arrays)
+        layout = self._tile_layout(pl, untiled=bool(idx) and not tiles)
+        for rows, (index, arrays) in tiles.items():
+            if rows in layout:  # a finished tile: its points arrive at once
+                pl.tiles_arrived.append(
+                    (index, {k: arrays[k] for k in self.point_fields()}, rows[0])
+                )
+                pl.reused += index.size
+            else:  # a tile of another layout (other worker threads): answers requests
+                idx.append(index)
+                parts.append(arrays)
+        self._tile(pl, [rows for rows in layout if rows not in tiles], len(layout))
         if not idx:
             return
         pl.saved = {k: np.concatenate([a[k] for a in parts]) for k in self.point_fields()}
         pl.row = np.full(pl.ref.n_points, -1, dtype=np.int64)
         pl.row[np.concatenate(idx)] = np.arange(sum(i.size for i in idx))
+
+    def _tile_layout(self, pl: _Plane, untiled: bool) -> list[tuple[int, int]]:
+        """The plane's tiles (:mod:`study.tiles`): :data:`~study.tiles.TILES_PER_THREAD`
+        per worker thread, of at least :data:`~study.tiles.MIN_TILE_CELLS` coarse cells,
+        two or more; none with several contacts or without seeds (``warm`` off,
+        :attr:`seed_lists` off), with :attr:`barriers`, or when the plane's saved point
+        lists come from a run without tiles (``untiled``: they answer its requests)."""
+        if not self.tiles or self.barriers or pl.orbits is None or untiled:
+            return []
+        return tile_layout(self.spec.plane_shape[0], self.spec.coarse_step, self.worker_threads)
+
+    def _tile(self, pl: _Plane, rows: list[tuple[int, int]], n_tiles: int) -> None:
+        """The tiles ``rows`` to hand out first (out of ``n_tiles``), in the order of r;
+        the hint is computed now (each tile refines with its part)."""
+        pl.tiled = n_tiles
+        if not n_tiles:
+            return
+        pl.first_row = np.full(pl.ref.n_points, np.iinfo(np.int64).max, dtype=np.int64)
+        hint = self._refinement(pl).hint
+        for i0, i1 in rows:
+            task = tile_task(pl.ident["physics"], self.settings, self._axes, (i0, i1), hint)
+            task["coarse_step"] = self.spec.coarse_step
+            tile = Tile(self.spec.name, tile_key(pl.tag, (i0, i1)), (i0, i1), task, pl.sweep)
+            pl.tiles.append(tile)
+            pl.pending[tile.key] = (i0, i1)
 
     def _hint(self, sweep: tuple[int, ...], axes: dict) -> np.ndarray:
         from analysis.adaptive import closed_form_hint
@@ -608,7 +675,8 @@ class AdaptivePlan(ScenePlan):
             f"{self._where(pl)}: {n_sim:,} of {ref.n_points:,} points simulated "
             f"({100 * n_sim / ref.n_points:.2f} %, verification included) in "
             f"{len(ref.level_sizes())} levels, {time.perf_counter() - pl.t0:.1f} s; "
-            f"{pl.computed} point lists computed ({pl.here} by the client), "
+            f"{pl.computed - pl.tiles_done} point lists computed ({pl.here} by the client), "
+            f"{f'{pl.tiles_done} of {pl.tiled} tiles computed, ' if pl.tiled else ''}"
             f"{pl.reused:,} saved points reused; "
             f"{summary.line()}",
             always=True,

@@ -87,6 +87,12 @@ def _trace(task: dict) -> dict:
     return trace_chunk(task)
 
 
+def _tile(task: dict) -> dict:
+    from study.tiles import tile_chunk  # a tile of an adaptive plane, refined here
+
+    return tile_chunk(task)
+
+
 def _classify(
     scene: dict, settings: dict, r: np.ndarray, beta: np.ndarray, given: tuple | None = None
 ) -> dict:
@@ -140,4 +146,10 @@ def _classify_points(task: dict) -> dict:
 TRANSIENT = ("final",)
 
 #: The computation of each kind of unit (:mod:`study.plans`).
-KINDS = {"grid": _grid, "points": _classify_points, "adaptive": _point_list, "trace": _trace}
+KINDS = {
+    "grid": _grid,
+    "points": _classify_points,
+    "adaptive": _point_list,
+    "adaptive-tile": _tile,
+    "trace": _trace,
+}

@@ -132,7 +132,10 @@ class _Window:
     def fill(self) -> None:
         """Submit units until the window is full or every plan waits or is done. The
         worker threads are looked at after the units are submitted (a round trip: they
-        compute meanwhile), and the window filled again if it grew (a first look)."""
+        compute meanwhile), and the window filled again if it grew (a first look); first
+        when a plan cuts its first units by them (adaptive tiles, :mod:`study.tiles`)."""
+        if not self.next_look and any(getattr(p, "tiles", False) is True for p in self.active):
+            self._resize()
         while True:
             size = self.size
             batch: list[tuple[ScenePlan, object]] = []
