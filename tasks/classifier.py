@@ -109,7 +109,7 @@ def classify(
         only the first start is seeded. ``warm=False`` runs every point from
         its start alone. ``design=True`` also computes the design quantities
         (off by default: the design pass replays every orbit once more, adding
-        34-47 % to a warm point, docs/benchmarks.md; :mod:`tasks.fidelity`).
+        25-33 % to a warm point, docs/benchmarks.md; :mod:`tasks.fidelity`).
 
     Returns
     -------

@@ -41,7 +41,7 @@ the call at all. ``design`` (False by default) says whether the design
 quantities (amplitudes, contact force amplitude, dissipation,
 :data:`tasks.result.DESIGN_FIELDS`) of every orbit are computed: with
 ``design=True`` each converged orbit is replayed and sampled once more (the
-design pass, docs/simulator.md 8; it adds 34-47 % to a warm point), without
+design pass, docs/simulator.md 8; it adds 25-33 % to a warm point), without
 it the result's design fields are None. A map wants the labels; a designer
 asks for the amplitudes.
 
