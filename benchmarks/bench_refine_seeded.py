@@ -12,7 +12,7 @@ exact hint, no verification sample) run in this process with real simulation:
 each point list (``study.adaptive.MIN_LIST`` points, in the order the
 refinement hands them out) is classified by ``tasks.classifier.classify_given``
 seeded by the orbits of the solved points nearest to its points
-(``study.adaptive``'s ``GIVEN_PER_POINT`` per point), as a study does. Prints the
+(``tasks.orbits``' ``GIVEN_PER_POINT`` per point), as a study does. Prints the
 simulated points, the cycles they cost seeded this way against their cycles in
 the dense grid (the same points seeded by their grid neighbours) and from the
 held start alone (``warm=False``), and the CPU seconds of both maps' ``classify``
@@ -38,9 +38,10 @@ sys.path.insert(2, str(REPO / "benchmarks"))
 from bench_adaptive import cluster_scenes  # noqa: E402
 from bench_warm import table  # noqa: E402
 
-from study.adaptive import MIN_LIST, _Orbits  # noqa: E402
+from study.adaptive import MIN_LIST  # noqa: E402
 from tasks import Scene, classify  # noqa: E402
 from tasks.classifier import classify_given  # noqa: E402
+from tasks.orbits import Orbits  # noqa: E402
 from tasks.stream import StreamRefinement  # noqa: E402
 
 #: Fields the refinement needs from a point list.
@@ -62,7 +63,7 @@ def run(sc: dict, n_r: int, n_beta: int) -> list[object]:
     layout = {k: (str(np.asarray(getattr(dense, k)).dtype), 0) for k in KEYS}
     hint = closed_form_hint(scene, r, beta, "exact")
     ref = StreamRefinement((n_r, n_beta), 16, hint, fields=layout)
-    orbits = _Orbits((n_r, n_beta), 16)
+    orbits = Orbits((n_r, n_beta), 16)
     seeded_s, seeded_cycles, simulated = 0.0, 0.0, []
     while (idx := ref.take(MIN_LIST)).size:
         i_r, i_b = np.unravel_index(idx, ref.shape)

@@ -63,10 +63,8 @@ from tasks.adaptive import (
     VerificationSummary,
     disagreement_upper_bound,
 )
-from tasks.orbits import GIVEN_PER_POINT, Orbits  # noqa: F401 - GIVEN_PER_POINT: its home was here
+from tasks.orbits import Orbits
 from tasks.stream import StreamRefinement
-
-_Orbits = Orbits  # its former name here (benchmarks, tests)
 
 #: Seed of the verification sample (fixed: a rerun draws the same sample).
 VERIFY_SEED = 0

@@ -1,6 +1,6 @@
 """Seeds from outside a call: an adaptive map's new point lists are warm-started from
 the orbits of solved points near them (tasks.seeds, tasks.classifier.classify_given,
-study.adaptive._Orbits). The labels are those of the held start, the other fields
+tasks.orbits.Orbits). The labels are those of the held start, the other fields
 agree with a call without them to the polish, and only ``cycles`` shows the seeds."""
 
 from __future__ import annotations
