@@ -232,7 +232,7 @@ def test_constructors_and_errors():
         )
     with pytest.raises(ValueError, match="^contact: DOF index 5"):
         MultiScene.from_matrices(M, K, p, [("ground", 0), ("ground", 5)])
-    with pytest.raises(ValueError, match="^damping: scenes with several contacts are undamped"):
+    with pytest.raises(ValueError, match="^damping: with several contacts C must be proportional"):
         MultiScene.from_matrices(M, K, p, [("ground", 0), ("ground", 1)], damping=("modal", 0.1))
     with pytest.raises(ValueError, match="^contact: walls of one chain"):
         Scene(["ground", "base"], 2, contact_mass=[1, 2])

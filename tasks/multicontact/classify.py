@@ -29,6 +29,7 @@ POINT_COLUMNS = {
     "period": layout.OG_PERIOD,
     "initial_condition": layout.OG_IC,
     "asymptotic": layout.OG_ASYMPTOTIC,
+    "dissipation_viscous": layout.OG_VISCOUS,
 }
 DTYPES = {
     "regime": np.int8,
@@ -68,7 +69,9 @@ class MultiResult:
     the range of ``b_c . x``), ``stick_fraction``, ``dissipation`` (``beta_c``
     times the slip distance per excitation cycle) and
     ``contact_force_amplitude`` (largest ``|F_c|`` over the period; sampled in
-    stick phases), ``regime_rest`` (per contact, ``NOT_COMPUTED`` when rest was
+    stick phases), per point ``dissipation_viscous`` (the integral of
+    ``r x'^T C x'`` per excitation cycle, 0 when undamped; docs/contacts.md 7),
+    ``regime_rest`` (per contact, ``NOT_COMPUTED`` when rest was
     no start) and ``start_dependent`` (two starts gave different regimes).
     """
 
@@ -84,6 +87,7 @@ class MultiResult:
     stick_fraction: np.ndarray
     dissipation: np.ndarray
     contact_force_amplitude: np.ndarray
+    dissipation_viscous: np.ndarray
     regime_rest: np.ndarray
     start_dependent: np.ndarray
 

@@ -27,7 +27,16 @@ from __future__ import annotations
     CX_STICK_MIN,
     CX_MAX_EVENTS,
     CX_COMPLIANCE,
-) = range(23)
+    CX_RC,
+    CX_SIGMA,
+    CX_RHCX,
+    CX_CDIAG,
+    CX_DAMPED,
+    CX_R,
+) = range(29)
+# Damping (docs/contacts.md 7): ``r C``, the modal decay rates ``sigma[S, a]``, the
+# viscous part of the stuck forces ``r (H_S C X_S)_c``, ``X_S^T C X_S`` (diagonal), a
+# flag (False: the undamped code path, untouched) and r.
 
 # Columns of the per-contact statistics of a run (shape (k, N_CST)).
 (
@@ -45,12 +54,13 @@ from __future__ import annotations
 N_CST = 10
 
 # Entries of the global statistics of a run.
-GS_EVENTS, GS_STATUS, GS_FOREVER, GS_WORK = range(4)
-N_GST = 4
+# GS_VISCOUS: the viscous dissipation, integral of r x'^T C x' (checked runs of a damped scene).
+GS_EVENTS, GS_STATUS, GS_FOREVER, GS_WORK, GS_VISCOUS = range(5)
+N_GST = 5
 
 # Columns of the per-point global output.
-OG_CONVERGED, OG_CYCLES, OG_PERIOD, OG_IC, OG_STATUS, OG_ASYMPTOTIC = range(6)
-N_OG = 6
+OG_CONVERGED, OG_CYCLES, OG_PERIOD, OG_IC, OG_STATUS, OG_ASYMPTOTIC, OG_VISCOUS = range(7)
+N_OG = 7
 # Columns of the per-point, per-contact output.
 OC_REGIME, OC_STOPS, OC_AMP, OC_STICK, OC_DISSIPATION, OC_FORCE = range(6)
 N_OC = 6

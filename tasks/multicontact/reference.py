@@ -7,18 +7,18 @@ scanned in steps of a 32nd of the fastest half-period, events by brentq) with
 the stuck contacts' forces as Lagrange multipliers,
 
     r^2 G x'' = f - B_S g_S,   g_S = (B_S^T G^-1 B_S)^-1 B_S^T G^-1 f,
-    f = p cos(tau) - K x - sum_(c sliding) beta_c s_c b_c,
+    f = p cos(tau) - K x - r C x' - sum_(c sliding) beta_c s_c b_c,
 
 with events at ``b_c . x' = 0`` (sliding c) and ``|g_c| = beta_c`` (stuck c). The
 set after an event is chosen by the rule of docs/contacts.md 3 written
 afresh (plain numpy enumeration). The held start solves the KKT system
-``[[K - r^2 G, B], [B^T, 0]]``. Cycles run until the section state repeats
-(period 1 or 2, relative 1e-7) or ``max_cycles``; every 15 cycles scipy's
-``root`` seeks the fixed point of the Poincare map (taken only where it
-attracts). Each contact's regime is read from the last period (stuck
-throughout: no motion; stuck for more than 1e-6 at a time: stick-slip, unless
-its slip amplitude, half the range of ``b_c . x``, is below the creep threshold
-``SLIP_RTOL beta_c b_c^T K^-1 b_c`` of docs/contacts.md 4: no motion; else
+``[[K - r^2 G + i r C, B], [B^T, 0]]`` (complex amplitudes; C = 0 undamped).
+Cycles run until the section state repeats (period 1 or 2, relative 1e-7) or
+``max_cycles``; every 15 cycles scipy's ``root`` seeks the fixed point of the
+Poincare map (taken only where it attracts). Each contact's regime is read from
+the last period (stuck throughout: no motion; stuck for more than 1e-6 at a
+time: stick-slip, unless its slip amplitude, half the range of ``b_c . x``, is
+below the creep threshold ``SLIP_RTOL beta_c b_c^T K^-1 b_c`` of docs/contacts.md 4: no motion; else
 continuous). Slow (a pure Python loop): for tests and benchmarks only.
 """
 
@@ -47,6 +47,7 @@ class _System:
         self.G = scene.mass_matrix(1.0)
         self.Ginv = np.linalg.inv(self.G)
         self.K = scene.stiffness_matrix()
+        self.rC = scene.damping_matrix(r)
         self.B = scene.contact_vectors()
         self.p = scene.load_vector(r)
         self.r2 = r * r
@@ -54,9 +55,9 @@ class _System:
         self.n, self.k = self.B.shape
         self.operators = {}
 
-    def forces(self, tau, x, stuck, signs):
+    def forces(self, tau, x, xd, stuck, signs):
         """``(f - B_S g_S, g)``: the net force and the stuck contacts' forces."""
-        f = self.p * math.cos(tau) - self.K @ x
+        f = self.p * math.cos(tau) - self.K @ x - self.rC @ xd
         for c in range(self.k):
             if c not in stuck:
                 f = f - self.betas[c] * signs[c] * self.B[:, c]
@@ -68,7 +69,7 @@ class _System:
             f = f - Bs @ gs
         return f, g
 
-    def decide(self, tau, x, candidates, signs):
+    def decide(self, tau, x, xd, candidates, signs):
         """Fewest sliding candidates first; stuck |g| <= beta, sliding s a > 0."""
         best = None
         for n_slide in range(len(candidates) + 1):
@@ -77,7 +78,7 @@ class _System:
                     trial = dict(signs)
                     trial.update(dict(zip(sliding, sg, strict=True)))
                     stuck = tuple(c for c in candidates if c not in sliding)
-                    f, g = self.forces(tau, x, stuck, trial)
+                    f, g = self.forces(tau, x, xd, stuck, trial)
                     a = self.B.T @ (self.Ginv @ f)
                     ok = all(abs(g[c]) <= self.betas[c] for c in stuck)
                     ok = ok and all(trial[c] * a[c] > 0.0 for c in sliding)
@@ -93,13 +94,16 @@ class _System:
         return best[1], best[2]
 
     def held(self):
-        """The held start at tau = 0: KKT of the held forced response."""
+        """The held start at tau = 0, ``(x, x')``: KKT of the held forced response
+        ``x = Re(X e^(i tau))``."""
         active = [c for c in range(self.k) if self.betas[c] > 0.0]
         Ba = self.B[:, active]
         m = len(active)
-        A = np.block([[self.K - self.r2 * self.G, Ba], [Ba.T, np.zeros((m, m))]])
+        D = self.K - self.r2 * self.G + 1j * self.rC
+        A = np.block([[D, Ba], [Ba.T, np.zeros((m, m))]])
         rhs = np.concatenate([self.p, np.zeros(m)])
-        return np.linalg.solve(A, rhs)[: self.n]
+        X = np.linalg.solve(A, rhs)[: self.n]
+        return np.concatenate([X.real, -X.imag])
 
 
 def _operator(sys: _System, stuck, signs):
@@ -122,6 +126,7 @@ def _operator(sys: _System, stuck, signs):
     A[:n, n : 2 * n] = np.eye(n)
     GP = sys.Ginv @ P / sys.r2
     A[n : 2 * n, :n] = -GP @ sys.K
+    A[n : 2 * n, n : 2 * n] = -GP @ sys.rC
     A[n : 2 * n, 2 * n] = GP @ sys.p
     A[n : 2 * n, 2 * n + 2] = GP @ fslide
     A[2 * n, 2 * n + 1] = -1.0  # (cos)' = -sin
@@ -130,11 +135,14 @@ def _operator(sys: _System, stuck, signs):
     for c in range(k):
         if c in stuck:
             E[c, :n] = -H[c] @ sys.K
+            E[c, n : 2 * n] = -H[c] @ sys.rC
             E[c, 2 * n] = H[c] @ sys.p
             E[c, 2 * n + 2] = H[c] @ fslide
         else:
             E[c, n : 2 * n] = sys.B[:, c]
     omega = np.sqrt(np.abs(np.linalg.eigvals(A[n : 2 * n, :n]))).max(initial=1.0)
+    if np.any(sys.rC):  # damped: the fastest rate of the state space, decay included
+        omega = max(omega, np.abs(np.linalg.eigvals(A[: 2 * n, : 2 * n])).max(initial=1.0))
     h = math.pi / (32.0 * max(omega, 1.0))
     return A, E, h, expm(A * h)
 
@@ -223,7 +231,7 @@ def _cycle(sys: _System, y, stuck, signs, stats):
                 cand.append(c)
                 free.pop(c)
         cand = [c for c in cand if sys.betas[c] > 0.0]
-        new_stuck, new_signs = sys.decide(t1, y1[:n], cand, free)
+        new_stuck, new_signs = sys.decide(t1, y1[:n], y1[n:], cand, free)
         for c in range(sys.k):
             if c in stuck and c not in new_stuck:
                 start = stick_start[c]
@@ -245,14 +253,25 @@ def reference_regimes(
     scene: MultiScene, r: float, beta: float, max_cycles: int = 300
 ) -> tuple[np.ndarray, bool]:
     """Per-contact regimes of one point (held start) and whether it converged."""
+    regime, _, ok = reference_point(scene, r, beta, max_cycles)
+    return regime, ok
+
+
+def reference_point(
+    scene: MultiScene, r: float, beta: float, max_cycles: int = 300
+) -> tuple[np.ndarray, np.ndarray, bool]:
+    """Per-contact regimes and slip amplitudes (half the range of ``b_c . x`` over the
+    last period; NaN unconverged) of one point (held start), and whether it converged."""
     sys = _System(scene, r, beta)
     k = sys.k
     if not np.any(sys.betas > 0.0):
-        return np.full(k, regimes.CONTINUOUS), True
-    x0 = sys.held()
-    y = np.concatenate([x0, np.zeros(sys.n)])
+        return np.full(k, regimes.CONTINUOUS), np.full(k, np.nan), True
+    y = sys.held()
+    x0 = y[: sys.n]
     active = [c for c in range(k) if sys.betas[c] > 0.0]
-    stuck, signs = sys.decide(0.0, x0, active, {c: 0.0 for c in range(k) if c not in active})
+    stuck, signs = sys.decide(
+        0.0, x0, y[sys.n :], active, {c: 0.0 for c in range(k) if c not in active}
+    )
     signs = {c: signs.get(c, 0.0) for c in range(k)}
     history = []
     for cycle in range(max_cycles):
@@ -269,8 +288,8 @@ def reference_regimes(
             if len(history) >= period + 2:
                 y_old, key_old, _ = history[-period]
                 if key_old == now and np.abs(y - y_old).max() <= SECTION_RTOL * scale:
-                    return _regimes(history[-period:], sys), True
-    return np.full(k, regimes.NOT_CONVERGED), False
+                    return (*_regimes(history[-period:], sys), True)
+    return np.full(k, regimes.NOT_CONVERGED), np.full(k, np.nan), False
 
 
 def _shoot(sys: _System, y, stuck, signs):
@@ -312,19 +331,21 @@ def _shoot(sys: _System, y, stuck, signs):
     return v
 
 
-def _regimes(history, sys: _System) -> np.ndarray:
+def _regimes(history, sys: _System) -> tuple[np.ndarray, np.ndarray]:
     out = np.empty(sys.k, dtype=int)
+    amplitudes = np.empty(sys.k)
     span = 2 * math.pi * len(history)
     compliance = np.einsum("ik,ik->k", sys.B, np.linalg.solve(sys.K, sys.B))
     for c in range(sys.k):
+        amplitude = 0.5 * (
+            max(h[2][c]["dmax"] for h in history) - min(h[2][c]["dmin"] for h in history)
+        )
+        amplitudes[c] = amplitude
         if sys.betas[c] == 0.0:
             out[c] = regimes.CONTINUOUS
             continue
         stuck = sum(h[2][c]["stuck"] for h in history)
         sticks = sum(h[2][c]["sticks"] for h in history)
-        amplitude = 0.5 * (
-            max(h[2][c]["dmax"] for h in history) - min(h[2][c]["dmin"] for h in history)
-        )
         if stuck >= span - 1e-6:
             out[c] = regimes.NO_MOTION
         elif amplitude < regimes.SLIP_RTOL * sys.betas[c] * compliance[c]:
@@ -333,7 +354,7 @@ def _regimes(history, sys: _System) -> np.ndarray:
             out[c] = regimes.STICK_SLIP
         else:
             out[c] = regimes.CONTINUOUS
-    return out
+    return out, amplitudes
 
 
 def agreement(scene: MultiScene, r, beta, regime, converged, max_cycles: int = 600):

@@ -11,8 +11,9 @@ while it is stuck; ``beta_k = beta_ratio[k] * beta``, so that a map over
 special case (:meth:`MultiScene.chain`). Every contact is ``("ground", j)``
 (``b = e_j``) or ``("between", i, j)`` (``b = e_j - e_i``), DOF indices from 0.
 The contact directions must be linearly independent (a set of stuck contacts
-then fixes its forces uniquely, docs/contacts.md 2). Undamped only (damping is
-future work, docs/contacts.md 7).
+then fixes its forces uniquely, docs/contacts.md 2). Damping ``r C x'`` as for one
+contact (docs/structures.md 1): a C proportional in every stuck set (Rayleigh
+``C = a M + b K`` always), docs/contacts.md 7.
 """
 
 from __future__ import annotations
@@ -101,22 +102,20 @@ class MultiScene:
         beta_ratio : sequence of float, optional
             ``beta_k = beta_ratio[k] * beta`` (default all 1); 0 is a contact
             without friction.
-        damping : None
-            Only undamped structures (docs/contacts.md 7).
+        damping : optional
+            As :meth:`tasks.scene.Scene.from_matrices`: a matrix C, ``("rayleigh", a, b)``
+            or ``("modal", zeta)``; it must be diagonal in the modes of every stuck
+            set (Rayleigh always is; docs/contacts.md 7). Zero damping is none.
 
         Raises
         ------
         ValueError
             One line naming the argument and the rule it breaks.
         """
-        if damping is not None:
-            raise ValueError(
-                "damping: scenes with several contacts are undamped (docs/contacts.md 7)"
-            )
         contacts = _contact_list(contact)
         if len(contacts) > MAX_CONTACTS:
             raise ValueError(f"contact: at most {MAX_CONTACTS} contacts, got {len(contacts)}")
-        structures = tuple(structure_matrices(mass, stiffness, load, c, None) for c in contacts)
+        structures = tuple(structure_matrices(mass, stiffness, load, c, damping) for c in contacts)
         B = np.array([s.b for s in structures]).T
         if np.linalg.matrix_rank(B) < len(contacts):
             raise ValueError(
@@ -126,7 +125,12 @@ class MultiScene:
         if len({s.contact for s in structures}) < len(structures):
             raise ValueError("contact: a contact is listed twice")
         ratios = _ratios(beta_ratio, len(contacts))
-        return cls(structures, ratios, label)
+        scene = cls(structures, ratios, label)
+        if scene.damped:  # proportional in every stuck set, or one line naming damping
+            from tasks.multicontact.sets import stuck_sets
+
+            stuck_sets(scene)
+        return scene
 
     @classmethod
     def chain(
@@ -193,7 +197,12 @@ class MultiScene:
 
     @property
     def damped(self) -> bool:
-        return False
+        return self.structures[0].damping is not None
+
+    def damping_matrix(self, r: float = 1.0) -> np.ndarray:
+        """``r C`` of Eq. 1.1 of docs/structures.md (zeros when undamped)."""
+        C = self.structures[0].damping
+        return np.zeros((self.dof, self.dof)) if C is None else r * C
 
     @property
     def label(self) -> str:
@@ -246,6 +255,7 @@ class MultiScene:
             "contacts": [plain(c) for c in self.contacts],
             "beta_ratio": list(self.beta_ratio),
             "label": self.label_hint,
+            "damping": plain(kw["damping"]),
         }
 
     @classmethod
@@ -260,6 +270,7 @@ class MultiScene:
             load,
             [tuple(c) for c in data["contacts"]],
             beta_ratio=data["beta_ratio"],
+            damping=data.get("damping"),
             label=data.get("label", ""),
         )
 

@@ -20,6 +20,13 @@ The forces the stuck contacts must carry are
 
 (the friction forces are ``-g_S``) and the set stays stuck while ``|g_c| <= beta_c``.
 Everything here is independent of r and beta (``M = r^2 G``: ``Omega = sqrt(lam) / r``).
+
+**Damping** ``r C x'`` (docs/contacts.md 7): ``X_S^T C X_S`` must be diagonal
+(to :data:`PROPORTIONAL_RTOL`) in every set, as Rayleigh ``C = a G + b K`` is
+(``T^T C T = a G_S + b K_S``): each mode then gets ``eta'' + 2 sigma eta' + ...``
+with ``sigma = cdiag / (2 r)`` (docs/structures.md 4.1), and the stuck forces
+their viscous part, ``g_S = H_S (... - r C x')`` with ``x' = X_S eta'``
+(``HCX[S, c, :m] = (H_S C X_S)_c``).
 Arrays are padded to n modes and k contacts so that the compiled simulator
 indexes them by the set's bit mask.
 """
@@ -63,6 +70,13 @@ class StuckSets:
     H: np.ndarray
     HKX: np.ndarray
     BX: np.ndarray
+    C: np.ndarray
+    cdiag: np.ndarray
+    HCX: np.ndarray
+
+    @property
+    def damped(self) -> bool:
+        return bool(np.any(self.cdiag))
 
     def kernel_args(self) -> tuple:
         """The arrays in the order :func:`tasks.multicontact.steady.run_points` takes them."""
@@ -84,11 +98,26 @@ class StuckSets:
             c(self.H),
             c(self.HKX),
             c(self.BX),
+            c(self.C),
+            c(self.cdiag),
+            c(self.HCX),
+            self.damped,
         )
 
 
+#: Largest off-diagonal of ``X_S^T C X_S`` relative to its largest entry for which the
+#: damping counts as proportional in set S (as one contact's, docs/structures.md 4.1).
+PROPORTIONAL_RTOL = 1e-9
+
+
 def stuck_sets(scene: MultiScene) -> StuckSets:
-    """The arrays of every stuck set of ``scene`` (see :class:`StuckSets`)."""
+    """The arrays of every stuck set of ``scene`` (see :class:`StuckSets`).
+
+    Raises
+    ------
+    ValueError
+        One ``damping:`` line when C is not diagonal in the modes of some stuck set.
+    """
     G = scene.mass_matrix(1.0)
     K = scene.stiffness_matrix()
     B = scene.contact_vectors()
@@ -104,6 +133,9 @@ def stuck_sets(scene: MultiScene) -> StuckSets:
     H = np.zeros((n_sets, k, n))
     HKX = np.zeros((n_sets, k, n))
     BX = np.zeros((n_sets, k, n))
+    C = scene.damping_matrix(1.0)
+    cdiag = np.zeros((n_sets, n))
+    HCX = np.zeros((n_sets, k, n))
     for S in range(n_sets):
         stuck = [c for c in range(k) if S >> c & 1]
         Bs = B[:, stuck]
@@ -119,6 +151,8 @@ def stuck_sets(scene: MultiScene) -> StuckSets:
             X[S, :, :m] = Xs
             XtG[S, :m, :] = Xs.T @ G
             BX[S, :, :m] = B.T @ Xs
+            if scene.damped:
+                cdiag[S, :m] = _modal_damping(Xs.T @ C @ Xs, [scene.contacts[c] for c in stuck])
         if stuck:
             Ws = Bs @ np.linalg.inv(Bs.T @ Bs)
             Hs = np.linalg.solve(Bs.T @ Ginv @ Bs, Bs.T @ Ginv)
@@ -127,6 +161,7 @@ def stuck_sets(scene: MultiScene) -> StuckSets:
                 H[S, c, :] = Hs[i]
                 if m:
                     HKX[S, c, :m] = Hs[i] @ K @ X[S, :, :m]
+                    HCX[S, c, :m] = Hs[i] @ C @ X[S, :, :m]
     compliance = np.einsum("ik,ik->k", B, np.linalg.solve(K, B))
     return StuckSets(
         n=n,
@@ -147,4 +182,23 @@ def stuck_sets(scene: MultiScene) -> StuckSets:
         H=H,
         HKX=HKX,
         BX=BX,
+        C=C,
+        cdiag=cdiag,
+        HCX=HCX,
     )
+
+
+def _modal_damping(Cs: np.ndarray, held: list) -> np.ndarray:
+    """The diagonal of ``Cs = X_S^T C X_S``, or a ValueError naming ``damping`` when it
+    is not diagonal (the general damping of docs/structures.md 4.5 per set is not
+    implemented with several contacts)."""
+    diag = np.diag(Cs).copy()
+    off = np.abs(Cs - np.diag(diag)).max(initial=0.0)
+    if off > PROPORTIONAL_RTOL * max(np.abs(Cs).max(), 1e-300):
+        where = f"with {held} held" if held else "without contacts held"
+        raise ValueError(
+            "damping: with several contacts C must be proportional in every stuck set "
+            f"(e.g. ('rayleigh', a, b)); it couples the modes of the structure {where} "
+            "(docs/contacts.md 7)"
+        )
+    return np.maximum(diag, 0.0)

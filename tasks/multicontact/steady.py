@@ -18,6 +18,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from tasks.kernel.damping import particular
 from tasks.kernel.layout import TWO_PI
 from tasks.multicontact.cycle import run_cycle
 from tasks.multicontact.decide import decide
@@ -35,6 +36,7 @@ from tasks.multicontact.layout import (
     CX_B,
     CX_BETAS,
     CX_COMPLIANCE,
+    CX_DAMPED,
     CX_G,
     CX_H,
     CX_HP,
@@ -43,11 +45,14 @@ from tasks.multicontact.layout import (
     CX_OMEGA,
     CX_P,
     CX_R2,
+    CX_RC,
+    CX_SIGMA,
     CX_SIZE,
     CX_STICK_MIN,
     CX_X,
     GS_FOREVER,
     GS_STATUS,
+    GS_VISCOUS,
     GS_WORK,
     N_CST,
     N_GST,
@@ -65,6 +70,7 @@ from tasks.multicontact.layout import (
     OG_IC,
     OG_PERIOD,
     OG_STATUS,
+    OG_VISCOUS,
 )
 from tasks.regimes import (
     CONTINUOUS,
@@ -97,7 +103,8 @@ POLISH_STEPS = 4
 @njit(cache=True)
 def point_context(r, beta, args, settings):
     """The per-point context tuple (entries ``CX_*`` of :mod:`tasks.multicontact.layout`)."""
-    (G, Ginv, K, p0, scales, B, ratio, compliance, size, lam, X, XtG, W, H, HKX, BX) = args
+    (G, Ginv, K, p0, scales, B, ratio, compliance, size, lam, X, XtG, W, H, HKX, BX) = args[:16]
+    C, cdiag, HCX, damped = args[16], args[17], args[18], args[19]
     event_tol = settings[0]
     step_fraction = settings[1]
     max_events = settings[7]
@@ -129,6 +136,14 @@ def point_context(r, beta, args, settings):
                 acc += H[S, c, i] * p[i]
             hp[S, c] = acc
     events = max(float(max_events), min(8.0 * om_max, 1e9))
+    if damped:
+        sigma = cdiag / (2.0 * r)
+        rC = r * C
+        rHCX = r * HCX
+    else:  # the undamped path never reads these
+        sigma = np.zeros((1, 1))
+        rC = np.zeros((1, 1))
+        rHCX = np.zeros((1, 1, 1))
     return (
         G,
         Ginv,
@@ -153,17 +168,26 @@ def point_context(r, beta, args, settings):
         1e3 * event_tol,
         events,
         compliance,
+        rC,
+        sigma,
+        rHCX,
+        cdiag,
+        damped,
+        r,
     )
 
 
 @njit(cache=True)
 def held_response(ctx, stuck):
     """The forced response of the structure with the contacts ``stuck`` held at zero
-    relative displacement, at tau = 0 (``x_h(tau) = x_h(0) cos tau``).
-    Returns ``(X, exists)``: it does not exist at a resonance of a loaded mode."""
+    relative displacement, at tau = 0 (``x_h(tau) = x_h(0) cos tau``; damped:
+    ``x_c cos tau + x_s sin tau``, returned as ``(x_c, x_s)`` = ``(x, x')`` at tau = 0,
+    Eq. 4.2 of docs/structures.md). Returns ``(X, exists)``: it does not exist at a
+    resonance of a loaded undamped mode."""
     n = ctx[CX_P].shape[0]
     m = ctx[CX_SIZE][stuck]
     Xs = ctx[CX_X][stuck]
+    damped = ctx[CX_DAMPED]
     out = np.zeros(2 * n)
     for a in range(m):
         load = ctx[CX_LOAD_COS][stuck, a]
@@ -171,10 +195,17 @@ def held_response(ctx, stuck):
             continue
         om2 = ctx[CX_OMEGA][stuck, a] ** 2
         den = om2 - 1.0
-        if abs(den) < 1e-9 * max(om2, 1.0):
+        sigma = ctx[CX_SIGMA][stuck, a] if damped else 0.0
+        if sigma == 0.0 and abs(den) < 1e-9 * max(om2, 1.0):
             return out, False
-        for i in range(n):
-            out[i] += Xs[i, a] * load / den
+        if damped:
+            P, Q = particular(math.sqrt(om2), sigma, load)
+            for i in range(n):
+                out[i] += Xs[i, a] * P
+                out[n + i] += Xs[i, a] * Q
+        else:
+            for i in range(n):
+                out[i] += Xs[i, a] * load / den
     return out, True
 
 
@@ -201,7 +232,22 @@ def held_margins(ctx, margins):
             for j in range(n):
                 kx += K[i, j] * X[j]
             g -= H[c, i] * kx
-        margins[c] = ctx[CX_BETAS][c] - abs(g)
+        amp = abs(g)
+        if ctx[CX_DAMPED]:  # g = gc cos + gs sin: gc - H rC x_s, gs = -H K x_s + H rC x_c
+            rC = ctx[CX_RC]
+            gs = 0.0
+            for i in range(n):
+                kxs = 0.0
+                cxs = 0.0
+                cxc = 0.0
+                for j in range(n):
+                    kxs += K[i, j] * X[n + j]
+                    cxs += rC[i, j] * X[n + j]
+                    cxc += rC[i, j] * X[j]
+                g -= H[c, i] * cxs
+                gs += H[c, i] * (cxc - kxs)
+            amp = math.hypot(g, gs)
+        margins[c] = ctx[CX_BETAS][c] - amp
         if (active >> c) & 1 and margins[c] <= HELD_MARGIN_RTOL * ctx[CX_BETAS][c]:
             ok = False
     return ok
@@ -218,10 +264,13 @@ def _period(X, stuck, signs, cst, gst, ctx, n_cycles, max_work, check):
     total = np.zeros((k, N_CST))
     rec_n = np.zeros(1, dtype=np.int64)
     buf = np.zeros((0, 2 + k + 2 * n))
+    viscous = 0.0
     for cyc in range(n_cycles):
         stuck = run_cycle(
             x, xd, stuck, signs, cst, gst, ctx, 0.0, TWO_PI, max_work, check, buf, rec_n
         )
+        viscous += gst[GS_VISCOUS]
+        gst[GS_VISCOUS] = viscous
         for c in range(k):
             cst[c, CS_STICK_START] -= TWO_PI
             for j in range(N_CST):
@@ -248,6 +297,7 @@ def _undetermined(out_g, out_c, code, cycles, ic):
     out_g[OG_PERIOD] = 0.0
     out_g[OG_IC] = ic
     out_g[OG_STATUS] = code
+    out_g[OG_VISCOUS] = np.nan
     for c in range(out_c.shape[0]):
         out_c[c, :] = np.nan
         out_c[c, OC_REGIME] = code
@@ -415,6 +465,7 @@ def _finish(X, stuck, signs, ctx, period, cycles, ic, out_g, out_c, max_work):
     out_g[OG_PERIOD] = period
     out_g[OG_IC] = ic
     out_g[OG_STATUS] = 0.0
+    out_g[OG_VISCOUS] = gst[GS_VISCOUS] / period
     betas = ctx[CX_BETAS]
     active = ctx[CX_ACTIVE]
     span = TWO_PI * period
@@ -525,7 +576,7 @@ def start_state(ctx, ic, r, beta, seed):
             if (candidates >> c) & 1 and v != 0.0:
                 signs[c] = 1.0 if v > 0.0 else -1.0
                 candidates &= ~(1 << c)
-    stuck, _ = decide(X[:n], 0.0, candidates, signs, ctx, new_signs)
+    stuck, _ = decide(X[:n], X[n:], 0.0, candidates, signs, ctx, new_signs)
     return X, stuck, new_signs, used
 
 
