@@ -29,6 +29,12 @@ from tasks import regimes
 from tasks.multicontact import MultiScene
 
 #: What the drawn closed forms bound, in every several-contact section.
+DAMPED_NOTE = (
+    "A **damped** structure (viscous damping in every stuck set, docs/contacts.md 7): the "
+    "closed forms of one contact drawn for undamped scenes are not drawn here. The energy "
+    "dissipated per excitation cycle by the contacts' friction (`dissipation`, per "
+    "contact) and by the damping (`dissipation_viscous`) add up to the work of the load."
+)
 BOUNDS_NOTE = (
     "Closed forms of one contact (docs/theory.md 4, exact method) with the **other "
     "contacts held** (frictionless ones free) are drawn on each contact's map (dashed: "
@@ -187,6 +193,28 @@ def adaptive_line(ds: xr.Dataset) -> str:
     return line
 
 
+def _viscous_rows(ds: xr.Dataset) -> list[str]:
+    """The energy dissipated per excitation cycle, friction (every contact) and viscous,
+    over the converged points of a damped scene (docs/contacts.md 7)."""
+    if "dissipation_viscous" not in ds:
+        return []
+    ok = ds["regime_combined"].values >= 0  # every contact's regime determined
+    if not ok.any():
+        return []
+    friction = ds["dissipation"].sum("contact").values[ok]
+    viscous = ds["dissipation_viscous"].values[ok]
+    total = friction + viscous
+    share = np.divide(viscous, total, out=np.zeros_like(total), where=total > 0.0)
+    return [
+        "| per excitation cycle (converged points) | median | max |",
+        "|---|---|---|",
+        f"| friction, all contacts | {np.median(friction):.4g} | {friction.max():.4g} |",
+        f"| viscous | {np.median(viscous):.4g} | {viscous.max():.4g} |",
+        f"| viscous share of the total | {np.median(share):.3g} | {share.max():.3g} |",
+        "",
+    ]
+
+
 def section(name: str, ds: xr.Dataset, out_dir: Path, stem: str) -> tuple[list[str], list[Path]]:
     """The report section of a several-contact scene and its figures."""
     k = ds.sizes["contact"]
@@ -196,8 +224,9 @@ def section(name: str, ds: xr.Dataset, out_dir: Path, stem: str) -> tuple[list[s
     counts = [(0, 0)] * k
     n_planes = 0
     title = ds.attrs.get("scene_name", name)
+    damped = "damping_matrix" in ds  # the closed forms of contact_bounds are undamped
     for label, plane in planes(ds) if grid else ():
-        scene = contact_bounds.scene_of(plane)
+        scene = None if damped else contact_bounds.scene_of(plane)
         if scene is not None:
             found = contact_bounds.held_agreement(plane, scene)
             counts = [(a + n, b + m) for (a, b), (n, m) in zip(counts, found, strict=True)]
@@ -217,8 +246,12 @@ def section(name: str, ds: xr.Dataset, out_dir: Path, stem: str) -> tuple[list[s
     lines += [""] + [f"![{p.stem}]({p.name})" for p in images] + [""]
     if n_planes > MAX_PLANES:
         lines += [f"Figures of the first {MAX_PLANES} of {n_planes} planes.", ""]
-    lines += [BOUNDS_NOTE, ""]
-    if grid:
+    if damped:
+        lines += [DAMPED_NOTE, ""]
+        lines += _viscous_rows(ds)
+    else:
+        lines += [BOUNDS_NOTE, ""]
+    if grid and not damped:
         lines += ["### Closed forms with the other contacts held", ""]
         lines += _agreement_rows(counts, where)
     lines += [

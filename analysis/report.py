@@ -87,6 +87,8 @@ def _needed(ds: xr.Dataset) -> xr.Dataset:
         "simulated",
         "verification",
     )
+    if "damping_matrix" in ds and "contact" in ds.dims:  # several damped contacts
+        wanted += ("dissipation", "dissipation_viscous")  # analysis.contacts: energy table
     keep = [v for v in ds.data_vars if v in wanted or str(v).startswith("beta_")]
     keep += [v for v in ds.data_vars if v in starts.START_VARIABLES]
     keep += [v for v in ds.data_vars if "dof" in ds[v].dims]  # a structure's matrices

@@ -43,6 +43,7 @@ POINT_FIELDS: tuple[str, ...] = (
     "initial_condition",
     "asymptotic",
     "start_dependent",
+    "dissipation_viscous",
 )
 #: The combined label: one code per point (:func:`combined_attrs`).
 COMBINED = "regime_combined"
@@ -208,11 +209,15 @@ def _plain(v: object) -> object:
 def describe(scene: MultiScene, beam: dict | None = None) -> str:
     """What the scene is, for titles: ``2-DOF structure, 2 contacts (ground 0, ground 1)``
     (a beam: ``cantilever beam, contacts at nodes 5, 10``)."""
+    from study.structures import damping_label
+
+    damping = damping_label(scene)
+    damping = f", {damping}" if damping else ""
     if beam is not None:
         nodes = ", ".join(str(n) for n in beam["contact_node"])
-        return f"{beam.get('supports', 'cantilever')} beam, contacts at nodes {nodes}"
+        return f"{beam.get('supports', 'cantilever')} beam, contacts at nodes {nodes}{damping}"
     where = ", ".join(" ".join(str(x) for x in c) for c in scene.contacts)
-    return f"{scene.dof}-DOF structure, {scene.n_contacts} contacts ({where})"
+    return f"{scene.dof}-DOF structure, {scene.n_contacts} contacts ({where}){damping}"
 
 
 def scene_attr(spec) -> dict[str, object]:
@@ -227,7 +232,7 @@ def scene_attr(spec) -> dict[str, object]:
         "contacts": _plain(scene.contacts),
         "beta_ratio": list(scene.beta_ratio),
         "load": "base" if scene.load_scales_r2 else "force",
-        "damping": "none",
+        "damping": scene.structures[0].damping_kind,
         "description": describe(scene, spec.beam),
     }
     if spec.beam is not None:
@@ -245,16 +250,20 @@ def scene_attr(spec) -> dict[str, object]:
 def toml_fields(spec) -> dict[str, object]:
     """The keys of a ``[[scene]]`` table of matrices or of a beam that give the scene of
     ``spec`` (a :class:`study.definition.SceneSpec`) again."""
+    from study.structures import damping_toml
+
     scene = spec.structure
-    if spec.beam is not None:
-        return {"beam": dict(spec.beam), "beta_ratio": list(scene.beta_ratio)}
     s = scene.structures[0]
+    if spec.beam is not None:
+        damping = damping_toml(s, spec.beam)
+        return {"beam": dict(spec.beam), "beta_ratio": list(scene.beta_ratio), **damping}
     load = {"base": _plain(s.load_spec[1])} if s.load_scales_r2 else _plain(s.load_spec)
     contact = [{kind: idx[0] if kind == "ground" else list(idx)} for kind, *idx in scene.contacts]
     return {
         "matrices": {"mass": _plain(s.mass), "stiffness": _plain(s.stiffness), "load": load},
         "contact": contact,
         "beta_ratio": list(scene.beta_ratio),
+        **damping_toml(s, None),
     }
 
 
@@ -277,11 +286,18 @@ def structure_variables(scene: MultiScene) -> dict[str, tuple[tuple[str, ...], n
             "contact direction b_c of Eq. 1.1 of each contact (slip velocity b_c . x')",
         ),
     }
+    if s.damping is not None:  # as one contact's (study.structures.structure_variables)
+        from study.structures import structure_variables as single_variables
+
+        single = single_variables(scene.single(0))["damping_matrix"]
+        values["damping_matrix"] = (single[0], single[1], single[2]["comment"])
     out = {}
     for name, (dims, value, meaning) in values.items():
         attrs: dict[str, object] = {"long_name": meaning.split(" of Eq.")[0], "units": "1"}
         attrs["comment"] = meaning
         if name == "load_vector":
             attrs["load_kind"] = "base" if s.load_scales_r2 else "force"
+        if name == "damping_matrix":
+            attrs = single[2]
         out[name] = (dims, np.array(value, dtype=np.float64), attrs)
     return out

@@ -265,7 +265,7 @@ def beam_scene(raw: object, damping: object, beta_ratio: object = None) -> Scene
 def check_simulable(scene: Scene) -> Scene:
     """``scene`` if the simulator takes it (proportional damping, docs/structures.md 4.1),
     else the one-line error of ``tasks.model`` naming ``damping``, before any run."""
-    if isinstance(scene, MultiScene):  # undamped: always simulable (docs/contacts.md)
+    if isinstance(scene, MultiScene):  # its constructor checked the damping (docs/contacts.md 7)
         return scene
     try:
         scene_modes(scene).kernel_args()
@@ -293,8 +293,8 @@ def describe(scene: Scene, beam_raw: Mapping | None) -> str:
 
 def damping_label(scene: Scene) -> str:
     """``zeta = 0.01`` (modal), ``zeta_1 = 0.01`` (Rayleigh: the first mode's ratio),
-    ``damping matrix`` or ``""`` (undamped)."""
-    s = scene.structure
+    ``damping matrix`` or ``""`` (undamped); several contacts: their common structure."""
+    s = scene.structures[0] if isinstance(scene, MultiScene) else scene.structure
     if s.damping_kind == "modal":
         z = np.atleast_1d(s.damping_spec[1])
         zs = f"{z[0]:.3g}" if np.all(z == z[0]) else f"{z.min():.3g}..{z.max():.3g}"
@@ -339,14 +339,21 @@ def toml_fields(scene: Scene, beam_raw: Mapping | None) -> dict[str, object]:
         d["matrices"] = {"mass": _plain(s.mass), "stiffness": _plain(s.stiffness), "load": load}
         kind, *idx = s.contact
         d["contact"] = {kind: idx[0] if kind == "ground" else idx}
+    d.update(damping_toml(s, beam_raw))
+    return d
+
+
+def damping_toml(s, beam_raw: Mapping | None) -> dict[str, object]:
+    """``{"damping": table}`` of the structure ``s`` (:class:`tasks.matrices.StructureMatrices`)
+    as a study file writes it, ``{}`` when undamped (a beam's matrix: from its table)."""
     spec = s.damping_spec
     if s.damping_kind == "rayleigh":
-        d["damping"] = {"rayleigh": [spec[1], spec[2]]}
-    elif s.damping_kind == "modal":
-        d["damping"] = {"modal": _plain(np.asarray(spec[1]))}
-    elif s.damping_kind == "matrix" and beam_raw is None:
-        d["damping"] = {"matrix": _plain(s.damping)}
-    return d
+        return {"damping": {"rayleigh": [spec[1], spec[2]]}}
+    if s.damping_kind == "modal":
+        return {"damping": {"modal": _plain(np.asarray(spec[1]))}}
+    if s.damping_kind == "matrix" and beam_raw is None:
+        return {"damping": {"matrix": _plain(s.damping)}}
+    return {}
 
 
 #: Variables of a structure's group: name -> (dims, meaning). ``dof`` indexes the

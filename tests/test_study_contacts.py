@@ -269,8 +269,9 @@ def test_door_names_the_field():
     m2 = {"mass": [[1.0, 0.0], [0.0, 1.0]], "stiffness": [[2.0, -1.0], [-1.0, 1.0]]}
     m2["load"] = [1.0, 0.0]
     two = [{"ground": 0}, {"ground": 1}]
-    assert "scene[0].damping: scenes with several contacts are undamped" in refused(
-        {"matrices": m2, "contact": two, "damping": {"rayleigh": [0.01, 0.0]}}
+    coupling = {"matrix": [[0.1, 0.02], [0.02, 0.01]]}  # not proportional (docs/contacts.md 7)
+    assert "scene[0].damping: with several contacts C must be proportional" in refused(
+        {"matrices": m2, "contact": two, "damping": coupling}
     )
     assert "scene[0].contact[1].ground" in refused(
         {"matrices": m2, "contact": [{"ground": 0}, {"ground": -1}]}
