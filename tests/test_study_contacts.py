@@ -426,8 +426,8 @@ def test_door_of_swept_and_beam_scenes():
     assert "scene[0].beta_ratio: applies to scenes with several contacts" in refused(
         {"beam": {"n_elements": 6, "contact_node": 3}, "beta_ratio": [1.0]}
     )
-    assert "scene[0].damping: scenes with several contacts are undamped" in refused(
-        {"beam": two, "damping": {"rayleigh": [0.01, 0.0]}}
+    assert "scene[0].damping: with several contacts C must be proportional" in refused(
+        {"beam": two, "damping": {"modal": 0.02}}
     )
 
 
