@@ -37,7 +37,9 @@ the verification sample;
 was before its point lists were seeded from the solved orbits of their cells'
 corners and cut at 256 points rather than 64 (:data:`BEFORE`; run just before the
 current one, under the same load; "same map" compares the labels and simulated
-points), ``--no-dense`` skips the dense grids:
+points, and where these differ whether the refinement is the same: its simulated
+points and the labels outside both verification samples, as against a checkout
+that drew its sample otherwise), ``--no-dense`` skips the dense grids:
 
     python benchmarks/bench_adaptive.py --cluster --size 1000x500 --scenes fig04:gamma1_kappa1
 
@@ -269,12 +271,28 @@ def _run(text: str, folder: Path, client, runner: Runner, patch: list | None = N
     answer = runner.run(path, out, patch or [])
     cpu = _cpu(client) - cpu + answer["client_cpu"]
     with xr.open_dataset(out) as ds:
-        arrays = {k: ds[k].values for k in ("regime", "simulated") if k in ds}
+        arrays = {k: ds[k].values for k in ("regime", "simulated", "verification") if k in ds}
         arrays["attrs"] = dict(ds.attrs)
     arrays["cpu"] = cpu
     arrays["client_cpu"] = answer["client_cpu"]
     out.unlink()
     return answer["wall"], arrays, answer["log"]
+
+
+def same_map(a: dict, b: dict) -> str:
+    """ "True" when two results have the same labels and simulated points; else whether
+    they have the same refinement: the same points simulated by it (``simulated``
+    outside the verification sample) and the same labels outside both samples (a
+    sample drawn otherwise, e.g. by an older checkout, ``--code``)."""
+    if np.array_equal(a["regime"], b["regime"]) and np.array_equal(a["simulated"], b["simulated"]):
+        return "True"
+    va, vb = a.get("verification"), b.get("verification")
+    if va is None or vb is None:
+        return "False"
+    refined = np.array_equal(a["simulated"] & (va == 0), b["simulated"] & (vb == 0))
+    outside = (va == 0) & (vb == 0)
+    labels = np.array_equal(a["regime"][outside], b["regime"][outside])
+    return f"False; same refinement: {refined and labels} (another sample)"
 
 
 def _best(runs: list[tuple[float, dict, str]]) -> tuple[float, dict, str]:
@@ -376,9 +394,7 @@ def cluster_main(args, n_r: int, n_beta: int) -> int:
             )
             for label, (b_sec, b_arr, b_log) in earlier:
                 b_lists = sum(int(m) for m in re.findall(r"(\d+) point lists computed", b_log))
-                same = np.array_equal(b_arr["regime"], arr["regime"]) and np.array_equal(
-                    b_arr["simulated"], arr["simulated"]
-                )
+                same = same_map(b_arr, arr)
                 b_ratio = b_cpu_ratio = "-"
                 if not args.no_dense:
                     b_ratio = f"{d_sec / b_sec:.1f}"
@@ -393,9 +409,7 @@ def cluster_main(args, n_r: int, n_beta: int) -> int:
                 b_sec, b_arr, _ = _run(
                     text(sc, (n_r, n_beta), mode), folder, client, here, BARRIERS
                 )
-                same = np.array_equal(b_arr["regime"], arr["regime"]) and np.array_equal(
-                    b_arr["simulated"], arr["simulated"]
-                )
+                same = same_map(b_arr, arr)
                 print(
                     f"| {sc['name']}, waves | | | | | {b_sec:.1f} | | | {b_arr['cpu']:.1f} "
                     f"| {b_arr['client_cpu']:.2f} | | | same map: {same} | |"
