@@ -683,11 +683,10 @@ class AdaptivePlan(ScenePlan):
             return
         pl.first_row = np.full(pl.ref.n_points, np.iinfo(np.int64).max, dtype=np.int64)
         hint = self._refinement(pl).hint
-        n_beta = self.spec.plane_shape[1]
         spec = self.spec
         threshold = sample_threshold(spec.verify_fraction, DEFAULT_VERIFY_MIN, pl.ref.n_points)
         verify = (threshold, VERIFY_SEED)  # each tile simulates its share of the sample
-        for i0, i1 in longest_first(rows, hint, n_beta, self.spec.coarse_step):
+        for i0, i1 in longest_first(rows, hint, self._axes["r"], spec.coarse_step):
             task = tile_task(pl.ident["physics"], self.settings, self._axes, (i0, i1), hint, verify)
             task["coarse_step"] = self.spec.coarse_step
             tile = Tile(self.spec.name, tile_key(pl.tag, (i0, i1)), (i0, i1), task, pl.sweep)

@@ -130,3 +130,16 @@ def test_tiled_study_computes_no_list_for_its_sample_and_equals_the_untiled(
         sampled = int((a["verification"].values > 0).sum())
         assert sampled == a.attrs["verification_sampled"] == b.attrs["verification_sampled"]
         assert sampled >= 200
+
+
+def test_tiles_go_out_costliest_predicted_first():
+    from study.tiles import longest_first
+
+    rows = strips(N_R, 16, 4)  # 4 tiles of 4 coarse cells
+    r = np.linspace(0.1, 3.0, N_R)
+    assert longest_first(rows, None, r, 16) == rows  # no hint: the order of r
+    hint = np.zeros((N_R, N_B), dtype=bool)
+    assert longest_first(rows, hint, r, 16) == rows  # equal points: small r costs more
+    hint[rows[2][0] + 3, :] = True  # a boundary across the third tile
+    assert longest_first(rows, hint, r, 16)[0] == rows[2]
+    assert sorted(longest_first(rows, hint, r, 16)) == rows
