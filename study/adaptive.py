@@ -421,7 +421,8 @@ class AdaptivePlan(ScenePlan):
 
     def _replay(self, pl: _Plane) -> None:
         """Move the refinement's ready points to ``todo``, answering at once those a saved
-        point list holds (their answers may make more points ready)."""
+        point list holds or a tile simulated as a candidate of the verification sample
+        (:class:`study.tiles.Candidates`; their answers may make more points ready)."""
         if pl.arrived:  # every point list arrived since the last look, in one call
             idx = np.concatenate([i for i, _ in pl.arrived])
             arrays = {k: np.concatenate([a[k] for _, a in pl.arrived]) for k in pl.arrived[0][1]}
@@ -593,7 +594,9 @@ class AdaptivePlan(ScenePlan):
             pl.out[k][at] = arrays[k]
 
     def _verify(self, pl: _Plane) -> None:
-        """Refinement is done: the verification sample's points become the ones to do."""
+        """Refinement is done: the verification sample's points become the ones to do
+        (:meth:`_replay` answers those the tiles simulated as candidates, or saved
+        point lists hold; the others go out as point lists)."""
         pl.phase = "verify"
         sample = pl.ref.verification(self.spec.verify_fraction, DEFAULT_VERIFY_MIN, VERIFY_SEED)
         pl.sample, pl.out = sample, self._empty(sample.size)
