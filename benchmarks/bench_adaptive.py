@@ -37,7 +37,9 @@ the verification sample;
 was before its point lists were seeded from the solved orbits of their cells'
 corners and cut at 256 points rather than 64 (:data:`BEFORE`; run just before the
 current one, under the same load; "same map" compares the labels and simulated
-points), ``--no-dense`` skips the dense grids:
+points, and where these differ whether the refinement is the same: its simulated
+points and the labels outside both verification samples, as against a checkout
+that drew its sample otherwise), ``--no-dense`` skips the dense grids:
 
     python benchmarks/bench_adaptive.py --cluster --size 1000x500 --scenes fig04:gamma1_kappa1
 
@@ -70,6 +72,16 @@ inverse of their share of the dense cycles caps the CPU ratio of a map whose
 points cost their dense cycles:
 
     python benchmarks/bench_adaptive.py --replay --size 1000x500 --scenes fig04:gamma1_kappa1
+
+``--timeline``: where the wall time of each ``--cluster`` scene's adaptive study
+goes (same cluster and study clients as ``--cluster``, ``--code`` too, the
+fastest of ``--repeat`` runs): the workers' busy seconds (the task stream), the
+wall beyond an even split of them, when the last tile ends and the wall after
+it, the client's CPU (its main thread's), then the workers' tasks and the
+client's steps (arrivals, refinement calls, the sample, the inferred fill, the
+result file) with their start and seconds:
+
+    python benchmarks/bench_adaptive.py --timeline --scenes fig04:gamma1_kappa1 --code ../main
 
 ``--example N``: ``study run examples/adaptive.toml`` through the CLI N times
 (a fresh process each, the compiled kernel cached; small studies compute in
@@ -241,8 +253,9 @@ class Runner:
             raise SystemExit(f"the study client of {checkout} did not start")
         self.module = ready["module"]
 
-    def run(self, toml: Path, out: Path, patch: list) -> dict:
-        self.proc.stdin.write(json.dumps({"toml": str(toml), "out": str(out), "patch": patch}))
+    def run(self, toml: Path, out: Path, patch: list, timeline: bool = False) -> dict:
+        req = {"toml": str(toml), "out": str(out), "patch": patch, "timeline": timeline}
+        self.proc.stdin.write(json.dumps(req))
         self.proc.stdin.write("\n")
         self.proc.stdin.flush()
         line = self.proc.stdout.readline()
@@ -269,12 +282,28 @@ def _run(text: str, folder: Path, client, runner: Runner, patch: list | None = N
     answer = runner.run(path, out, patch or [])
     cpu = _cpu(client) - cpu + answer["client_cpu"]
     with xr.open_dataset(out) as ds:
-        arrays = {k: ds[k].values for k in ("regime", "simulated") if k in ds}
+        arrays = {k: ds[k].values for k in ("regime", "simulated", "verification") if k in ds}
         arrays["attrs"] = dict(ds.attrs)
     arrays["cpu"] = cpu
     arrays["client_cpu"] = answer["client_cpu"]
     out.unlink()
     return answer["wall"], arrays, answer["log"]
+
+
+def same_map(a: dict, b: dict) -> str:
+    """ "True" when two results have the same labels and simulated points; else whether
+    they have the same refinement: the same points simulated by it (``simulated``
+    outside the verification sample) and the same labels outside both samples (a
+    sample drawn otherwise, e.g. by an older checkout, ``--code``)."""
+    if np.array_equal(a["regime"], b["regime"]) and np.array_equal(a["simulated"], b["simulated"]):
+        return "True"
+    va, vb = a.get("verification"), b.get("verification")
+    if va is None or vb is None:
+        return "False"
+    refined = np.array_equal(a["simulated"] & (va == 0), b["simulated"] & (vb == 0))
+    outside = (va == 0) & (vb == 0)
+    labels = np.array_equal(a["regime"][outside], b["regime"][outside])
+    return f"False; same refinement: {refined and labels} (another sample)"
 
 
 def _best(runs: list[tuple[float, dict, str]]) -> tuple[float, dict, str]:
@@ -376,9 +405,7 @@ def cluster_main(args, n_r: int, n_beta: int) -> int:
             )
             for label, (b_sec, b_arr, b_log) in earlier:
                 b_lists = sum(int(m) for m in re.findall(r"(\d+) point lists computed", b_log))
-                same = np.array_equal(b_arr["regime"], arr["regime"]) and np.array_equal(
-                    b_arr["simulated"], arr["simulated"]
-                )
+                same = same_map(b_arr, arr)
                 b_ratio = b_cpu_ratio = "-"
                 if not args.no_dense:
                     b_ratio = f"{d_sec / b_sec:.1f}"
@@ -393,14 +420,86 @@ def cluster_main(args, n_r: int, n_beta: int) -> int:
                 b_sec, b_arr, _ = _run(
                     text(sc, (n_r, n_beta), mode), folder, client, here, BARRIERS
                 )
-                same = np.array_equal(b_arr["regime"], arr["regime"]) and np.array_equal(
-                    b_arr["simulated"], arr["simulated"]
-                )
+                same = same_map(b_arr, arr)
                 print(
                     f"| {sc['name']}, waves | | | | | {b_sec:.1f} | | | {b_arr['cpu']:.1f} "
                     f"| {b_arr['client_cpu']:.2f} | | | same map: {same} | |"
                 )
         for runner in (here, other) if other else (here,):
+            runner.close()
+    return 0
+
+
+def timeline_main(args, n_r: int, n_beta: int) -> int:
+    """Where each adaptive study's wall time goes (``--timeline``): the workers' busy
+    seconds, the wall beyond an even split of them, the end of the last tile and what
+    follows it, the client's CPU, and the client's steps of the fastest run."""
+    import tempfile
+
+    from distributed import LocalCluster
+
+    from tasks import Scene
+
+    scenes = cluster_scenes(args.scenes)
+    classify(Scene("mass", 3, 2), 1.0, 0.1)
+    best_runs: dict[tuple[str, str], dict] = {}
+    mode = ADAPTIVE_MODE.format(step=args.coarse_step)
+    with (
+        LocalCluster(
+            n_workers=args.workers,
+            threads_per_worker=1,
+            processes=True,
+            host="127.0.0.1",
+            dashboard_address=None,
+        ) as cluster,
+        tempfile.TemporaryDirectory() as tmp,
+    ):
+        folder = Path(tmp)
+        runners = [
+            (
+                "this checkout",
+                Runner(Path(__file__).resolve().parent.parent, cluster.scheduler_address),
+            )
+        ]
+        if args.code:
+            runners.append((str(args.code), Runner(args.code, cluster.scheduler_address)))
+        print(
+            "| scene | code | wall s | workers busy s | wall beyond busy / workers "
+            "| last tile ends | after it | client CPU s (main thread) |\n|" + "---|" * 8
+        )
+        for sc in scenes:
+            path = folder / "bench.toml"
+            for size, timed in (((40, 20), False), ((n_r, n_beta), False), ((n_r, n_beta), True)):
+                path.write_text(STUDY.format(fidelity=args.fidelity, mode=mode, n_r=size[0],
+                                             n_beta=size[1], **sc), encoding="utf-8")  # fmt: skip
+                runs: dict[str, list] = {label: [] for label, _ in runners}
+                for i in range(args.repeat if timed else 1):
+                    for label, runner in runners if i % 2 == 0 else runners[::-1]:
+                        out = folder / f"t-{time.monotonic_ns()}.nc"
+                        runs[label].append(runner.run(path, out, [], timeline=timed))
+                        out.unlink(missing_ok=True)
+            for label, _ in runners:
+                best = min(runs[label], key=lambda a: a["wall"])
+                tl = best["timeline"]
+                wall, busy = best["wall"], tl["busy"]
+                beyond = wall - sum(busy) / max(1, len(busy))
+                print(
+                    f"| {sc['name']} | {label} | {wall:.3f} "
+                    f"| {' + '.join(f'{b:.3f}' for b in busy)} "
+                    f"| {beyond:.3f} ({100 * beyond / wall:.0f} %) | {tl['tile_end']:.3f} "
+                    f"| {wall - tl['tile_end']:.3f} "
+                    f"| {best['client_cpu']:.3f} ({tl['main_cpu']:.3f}) |",
+                    flush=True,
+                )
+                best_runs[(sc["name"], label)] = tl
+        for (name, label), tl in best_runs.items():
+            print(f"\n{name}, {label}: workers' tasks (start, end, worker, key) and client steps")
+            for start, stop, worker, key in tl["tasks"]:
+                print(f"  {start:6.3f} {stop:6.3f} {worker} {key}")
+            for step, t, dt, detail in tl["steps"]:
+                if dt >= 0.002 or step in ("arrival", "sample drawn", "plane finished"):
+                    print(f"  {t:6.3f} +{dt:.3f} {step} {detail}")
+        for _, runner in runners:
             runner.close()
     return 0
 
@@ -609,6 +708,7 @@ def main(argv: list[str] | None = None) -> int:
         action="store_true",
         help="--cluster: also the adaptive study without tiles (study.tiles), same run",
     )
+    ap.add_argument("--timeline", action="store_true", help="where the wall time goes")
     ap.add_argument("--example", type=int, default=0, help="time the CLI on the example N times")
     ap.add_argument(
         "--code",
@@ -622,6 +722,8 @@ def main(argv: list[str] | None = None) -> int:
         return example_main(args)
     if args.replay:
         return replay_main(args, n_r, n_beta)
+    if args.timeline:
+        return timeline_main(args, n_r, n_beta)
     if args.cluster:
         return cluster_main(args, n_r, n_beta)
     chosen = panels(args.panels)

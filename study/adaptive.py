@@ -26,9 +26,13 @@ computed again in the same run.
 
 A plane of one contact with warm starts starts with tiles instead
 (:mod:`study.tiles`): strips of whole coarse cells, each refined by one worker
-alone; their points arrive as a point list's do, and point lists follow for
-what they left unsettled, then the verification sample. A finished tile is
-saved under its own key and reused by a rerun.
+alone, which then simulates its share of the verification sample (the points it
+left inferred of a seeded priority below the sample's fraction,
+:func:`tasks.adaptive.verification_sample`); their points arrive as a point
+list's do, and point lists follow for what they left unsettled, then those of
+the sample the tiles did not hold (none, unless the sample's minimum takes more
+than they drew). A finished tile is saved under its own key and reused by a
+rerun.
 
 The result has the layout of a grid scene (dims ``(gamma, kappa, beta, r)``,
 every variable of :data:`tasks.result.FIELDS`) plus ``simulated`` and
@@ -50,24 +54,32 @@ from typing import TextIO
 import numpy as np
 
 from study import contacts
+from study.adaptive_attrs import VERIFY_SEED, plane_stats, result_attrs
 from study.compute import point_fields
 from study.cost import chunk_target, spec_factor
 from study.definition import SceneSpec, Study
 from study.plans import CHUNK_FORMAT, SECONDS, WAIT, ScenePlan
 from study.store import discard
-from study.tiles import Tile, tile_key, tile_layout, tile_rows, tile_task
+from study.tiles import (
+    Candidates,
+    Tile,
+    first_tile,
+    longest_first,
+    sample_threshold,
+    tile_key,
+    tile_layout,
+    tile_rows,
+    tile_task,
+)
 from study.verify import Expected
 from tasks.adaptive import (
     ADAPTIVE_FIELDS,
     DEFAULT_VERIFY_MIN,
     VerificationSummary,
-    disagreement_upper_bound,
 )
 from tasks.orbits import Orbits
 from tasks.stream import StreamRefinement
 
-#: Seed of the verification sample (fixed: a rerun draws the same sample).
-VERIFY_SEED = 0
 #: Seconds between two progress lines of one plane.
 PRINT_EVERY = 10.0
 #: Plane statistics saved with each plane (0-d or 1-d arrays in the plane file).
@@ -144,11 +156,14 @@ class _Plane:
     handed: bool = False  # a point list was handed out since the last result arrived
     orbits: Orbits | None = None  # solved orbits that seed new point lists (warm starts)
     tiles: list = field(default_factory=list)  # tiles to hand out (study.tiles)
-    pending: dict = field(default_factory=dict)  # tile key -> rows, not arrived yet
+    pending: dict = field(default_factory=dict)  # tile key -> rows, not in ``ref`` yet
+    landed: set = field(default_factory=set)  # keys of those arrived (in tiles_arrived)
     held: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))  # in them
     tiled: int = 0  # tiles of the plane (0: point lists only)
     tiles_done: int = 0  # tiles computed by this run
-    tiles_arrived: list = field(default_factory=list)  # (idx, arrays, first row) not in ``ref``
+    # (idx, arrays, first row, verify) of tiles not in ``ref`` (verify: sample candidates)
+    tiles_arrived: list = field(default_factory=list)
+    cand: Candidates | None = None  # the tiles' candidates of the verification sample
     first_row: np.ndarray | None = None  # point -> first row of the tile its fields are from
     batches: int = 0
     here: int = 0  # point lists computed by the client (AdaptivePlan.compute_here)
@@ -225,6 +240,7 @@ class AdaptivePlan(ScenePlan):
             "verify_min": DEFAULT_VERIFY_MIN,
             "hint": spec.hint,
             "seed": VERIFY_SEED,
+            "sample": "priority",  # tasks.adaptive.verification_sample
         }
         h = hashlib.sha256(json.dumps(ident, sort_keys=True).encode())
         h.update(np.ascontiguousarray(axes["r"]).tobytes())
@@ -239,11 +255,13 @@ class AdaptivePlan(ScenePlan):
         return out | {"levels": ("int64", None)} | {k: ("int64", ()) for k in STAT_NAMES[1:]}
 
     def expected(self, n: int | None) -> Expected:
-        """What a point list of ``n`` points holds (any length when ``n`` is None)."""
+        """What a point list of ``n`` points holds; a tile's file (any length, ``n`` None)
+        also which of its points are candidates of the verification sample."""
         out = {
             k: (dt, None if n is None else self._shape(k, (n,)))
             for k, dt in self.point_fields().items()
         }
+        out |= {"verify": ("bool", None)} if n is None else {}
         return out | SECONDS | {"index": ("int64", None if n is None else (n,))}
 
     def point_fields(self) -> dict[str, str]:
@@ -403,7 +421,8 @@ class AdaptivePlan(ScenePlan):
 
     def _replay(self, pl: _Plane) -> None:
         """Move the refinement's ready points to ``todo``, answering at once those a saved
-        point list holds (their answers may make more points ready)."""
+        point list holds or a tile simulated as a candidate of the verification sample
+        (:class:`study.tiles.Candidates`; their answers may make more points ready)."""
         if pl.arrived:  # every point list arrived since the last look, in one call
             idx = np.concatenate([i for i, _ in pl.arrived])
             arrays = {k: np.concatenate([a[k] for _, a in pl.arrived]) for k in pl.arrived[0][1]}
@@ -419,40 +438,51 @@ class AdaptivePlan(ScenePlan):
                     new = self._hold(pl, new)
                 if new.size:
                     pl.todo, pl.cut = np.concatenate([pl.todo, new]), 0
-            if pl.row is None or not pl.todo.size:
+            answered = False  # from saved point lists, then from the tiles' candidates
+            cand = (pl.cand.row, pl.cand.arrays) if pl.cand is not None else (None, None)
+            for row, store, saved in ((pl.row, pl.saved, True), (*cand, False)):
+                rows = row[pl.todo] if row is not None and pl.todo.size else None
+                known = rows >= 0 if rows is not None else None
+                if known is None or not known.any():
+                    continue
+                idx, pl.todo = pl.todo[known], pl.todo[~known]
+                arrays = {k: v[rows[known]] for k, v in store.items()}
+                if pl.phase == "refine":
+                    self._refinement(pl).accept(idx, arrays)
+                else:
+                    self._put(pl, idx, arrays)
+                pl.reused += idx.size if saved else 0
+                answered = True
+            if not answered:
                 return
-            rows = pl.row[pl.todo]
-            known = rows >= 0
-            if not known.any():
-                return
-            idx, pl.todo = pl.todo[known], pl.todo[~known]
-            arrays = {k: v[rows[known]] for k, v in pl.saved.items()}
-            if pl.phase == "refine":
-                self._refinement(pl).accept(idx, arrays)
-            else:
-                self._put(pl, idx, arrays)
-            pl.reused += idx.size
 
     def _accept_tiles(self, pl: _Plane) -> None:
         """The points of the tiles arrived since the last look to the refinement. A point
         of two tiles (on the row they share) keeps the fields of the tile of smaller r,
         whichever arrives first: they agree to the polish only (other seeds), and a
-        resumed run, which gets every saved tile at once, makes the same map."""
-        idx = np.concatenate([i for i, _, _ in pl.tiles_arrived])
-        arrays = {
-            k: np.concatenate([a[k] for _, a, _ in pl.tiles_arrived])
-            for k in pl.tiles_arrived[0][1]
-        }
-        first = np.concatenate([np.full(i.size, r0) for i, _, r0 in pl.tiles_arrived])
-        pl.tiles_arrived = []
-        order = np.lexsort((first, idx))  # by point, then by the tile's first row
-        idx, first = idx[order], first[order]
-        keep = np.ones(idx.size, dtype=bool)
-        keep[1:] = idx[1:] != idx[:-1]
-        keep[keep] = first[keep] < pl.first_row[idx[keep]]
-        take = order[keep]
-        idx = idx[keep]
-        pl.first_row[idx] = first[keep]
+        resumed run, which gets every saved tile at once, makes the same map.
+
+        Called at each arrival, while the other tiles compute: the refinement examines
+        the tiles' cells in one call for less CPU (Fig. 4: 24 ms for its 8 tiles
+        against 45 ms tile by tile), but a call for 7 tiles when the 7th arrives ends
+        after the last tile (0.14 s on a loaded machine), whose result waits for it
+        (``benchmarks/bench_adaptive.py --timeline``)."""
+        parts, pl.tiles_arrived = pl.tiles_arrived, []
+        idx = np.concatenate([i for i, _, _, _ in parts])
+        arrays = {k: np.concatenate([a[k] for _, a, _, _ in parts]) for k in parts[0][1]}
+        first = np.concatenate([np.full(i.size, r0) for i, _, r0, _ in parts])
+        cand = np.concatenate([v for _, _, _, v in parts])
+        for key in pl.landed:
+            pl.pending.pop(key, None)
+        pl.landed.clear()
+        if cand.any():  # the verification sample's candidates: answers, kept aside
+            if pl.cand is None:
+                pl.cand = Candidates(pl.ref.n_points)
+            pl.cand.add(idx[cand], {k: v[cand] for k, v in arrays.items()}, first[cand])
+            idx, first, arrays = idx[~cand], first[~cand], {k: v[~cand] for k, v in arrays.items()}
+        take = first_tile(idx, first, pl.first_row)
+        idx = idx[take]
+        pl.first_row[idx] = first[take]
         self._refinement(pl).accept(idx, {k: v[take] for k, v in arrays.items()})
 
     @staticmethod
@@ -523,15 +553,13 @@ class AdaptivePlan(ScenePlan):
         pl.handed = False
         if isinstance(unit, Tile):  # every point it simulated, as an arrived point list
             index = np.asarray(arrays["index"], dtype=np.int64)
-            pl.pending.pop(unit.key, None)
+            pl.landed.add(unit.key)  # its rows stay held until the refinement has it
             pl.tiles_done += 1
             pl.cost[0] += float(arrays["seconds"])
             pl.cost[1] += index.size
             if pl.orbits is not None and "final" in arrays:
                 pl.orbits.add(index, arrays["final"])
-            pl.tiles_arrived.append(
-                (index, {k: arrays[k] for k in self.point_fields()}, unit.rows[0])
-            )
+            pl.tiles_arrived.append(self._tile_part(index, arrays, unit.rows[0]))
             return
         pl.cost[0] += float(arrays["seconds"])
         pl.cost[1] += unit.n_points
@@ -551,6 +579,13 @@ class AdaptivePlan(ScenePlan):
                 f"{int(pl.ref.simulated.sum()):,} of {pl.ref.n_points:,} points simulated so far"
             )
 
+    def _tile_part(self, index: np.ndarray, arrays: dict, first_row: int) -> tuple:
+        """A tile's points as ``tiles_arrived`` holds them: indices, fields, the tile's
+        first row, which are candidates of the verification sample."""
+        verify = arrays.get("verify")
+        verify = np.zeros(index.size, dtype=bool) if verify is None else np.asarray(verify)
+        return index, {k: arrays[k] for k in self.point_fields()}, first_row, verify
+
     @staticmethod
     def _put(pl: _Plane, idx: np.ndarray, arrays: dict[str, np.ndarray]) -> None:
         """Results of points of the verification sample."""
@@ -559,7 +594,9 @@ class AdaptivePlan(ScenePlan):
             pl.out[k][at] = arrays[k]
 
     def _verify(self, pl: _Plane) -> None:
-        """Refinement is done: the verification sample's points become the ones to do."""
+        """Refinement is done: the verification sample's points become the ones to do
+        (:meth:`_replay` answers those the tiles simulated as candidates, or saved
+        point lists hold; the others go out as point lists)."""
         pl.phase = "verify"
         sample = pl.ref.verification(self.spec.verify_fraction, DEFAULT_VERIFY_MIN, VERIFY_SEED)
         pl.sample, pl.out = sample, self._empty(sample.size)
@@ -618,9 +655,7 @@ class AdaptivePlan(ScenePlan):
         layout = self._tile_layout(pl, untiled=bool(idx) and not tiles)
         for rows, (index, arrays) in tiles.items():
             if rows in layout:  # a finished tile: its points arrive at once
-                pl.tiles_arrived.append(
-                    (index, {k: arrays[k] for k in self.point_fields()}, rows[0])
-                )
+                pl.tiles_arrived.append(self._tile_part(index, arrays, rows[0]))
                 pl.reused += index.size
             else:  # a tile of another layout (other worker threads): answers requests
                 idx.append(index)
@@ -643,15 +678,19 @@ class AdaptivePlan(ScenePlan):
         return tile_layout(self.spec.plane_shape[0], self.spec.coarse_step, self.worker_threads)
 
     def _tile(self, pl: _Plane, rows: list[tuple[int, int]], n_tiles: int) -> None:
-        """The tiles ``rows`` to hand out first (out of ``n_tiles``), in the order of r;
-        the hint is computed now (each tile refines with its part)."""
+        """The tiles ``rows`` to hand out first (out of ``n_tiles``), the costliest
+        predicted first (:func:`~study.tiles.longest_first`); the hint is computed now
+        (each tile refines with its part)."""
         pl.tiled = n_tiles
         if not n_tiles:
             return
         pl.first_row = np.full(pl.ref.n_points, np.iinfo(np.int64).max, dtype=np.int64)
         hint = self._refinement(pl).hint
-        for i0, i1 in rows:
-            task = tile_task(pl.ident["physics"], self.settings, self._axes, (i0, i1), hint)
+        spec = self.spec
+        threshold = sample_threshold(spec.verify_fraction, DEFAULT_VERIFY_MIN, pl.ref.n_points)
+        verify = (threshold, VERIFY_SEED)  # each tile simulates its share of the sample
+        for i0, i1 in longest_first(rows, hint, self._axes["r"], spec.coarse_step):
+            task = tile_task(pl.ident["physics"], self.settings, self._axes, (i0, i1), hint, verify)
             task["coarse_step"] = self.spec.coarse_step
             tile = Tile(self.spec.name, tile_key(pl.tag, (i0, i1)), (i0, i1), task, pl.sweep)
             pl.tiles.append(tile)
@@ -739,41 +778,3 @@ class AdaptivePlan(ScenePlan):
     def result_attrs(self, work) -> dict[str, object]:
         """Scene attributes summed over its planes (after :meth:`writes`)."""
         return result_attrs(self, self._stats)
-
-
-def plane_stats(arrays: dict[str, np.ndarray]) -> dict[str, int]:
-    """The counts saved with a plane (for the result's attributes)."""
-    return {
-        "points": int(arrays["n_points"]),
-        "simulated": int(np.asarray(arrays["simulated"]).sum()),
-        "waves": int(np.asarray(arrays["levels"]).size),
-        "verify_inferred": int(arrays["verify_inferred"]),
-        "verify_sampled": int(arrays["verify_sampled"]),
-        "verify_agree": int(arrays["verify_agree"]),
-    }
-
-
-def result_attrs(plan: AdaptivePlan, stats: list[dict[str, int]]) -> dict[str, object]:
-    """Scene attributes of an adaptive result, summed over its planes."""
-    spec = plan.spec
-    tot = {k: sum(s[k] for s in stats) for k in stats[0]} if stats else {}
-    sampled, agree = tot.get("verify_sampled", 0), tot.get("verify_agree", 0)
-    return {
-        "adaptive_coarse_step": spec.coarse_step,
-        "adaptive_coarse_step_note": (
-            "coarsest spacing in grid steps: a region containing a square of this many grid "
-            "steps is sure to be found; narrower features may be missed (tasks.adaptive)"
-        ),
-        "adaptive_hint": spec.hint,
-        "adaptive_points": tot.get("points", 0),
-        "adaptive_points_simulated": tot.get("simulated", 0),
-        "adaptive_simulated_fraction": tot.get("simulated", 0) / max(1, tot.get("points", 0)),
-        "adaptive_waves_per_plane": json.dumps([s["waves"] for s in stats]),
-        "verification_fraction": spec.verify_fraction,
-        "verification_seed": VERIFY_SEED,
-        "verification_inferred_points": tot.get("verify_inferred", 0),
-        "verification_sampled": sampled,
-        "verification_agree": agree,
-        "verification_agreement": agree / sampled if sampled else float("nan"),
-        "verification_disagreement_upper_95": disagreement_upper_bound(sampled, sampled - agree),
-    }

@@ -116,6 +116,37 @@ def coarse_nodes(n: int, step: int) -> np.ndarray:
     return np.unique(np.append(np.arange(0, n, step), n - 1))
 
 
+def sample_priority(idx: np.ndarray, seed: int = 0) -> np.ndarray:
+    """A seeded uniform number in [0, 1) for each flat index ``idx`` of a plane (a
+    splitmix64 hash of index and seed): the verification sample takes the inferred
+    points of least priority (:func:`verification_sample`). A point's priority does
+    not depend on the other points, so a part of the plane (a tile, :mod:`tasks.tiles`)
+    knows which of its inferred points the sample may take before the plane is done."""
+    with np.errstate(over="ignore"):
+        z = (np.asarray(idx, dtype=np.uint64) + np.uint64(1)) * np.uint64(0x9E3779B97F4A7C15)
+        z = z ^ (np.uint64(seed) * np.uint64(0xD1B54A32D192ED03))
+        z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+        z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+        z = z ^ (z >> np.uint64(31))
+    return (z >> np.uint64(11)).astype(np.float64) * 2.0**-53
+
+
+def verification_sample(
+    inferred: np.ndarray, fraction: float, minimum: int, seed: int = 0
+) -> np.ndarray:
+    """The verification sample of the inferred points ``inferred`` (flat indices): those
+    whose :func:`sample_priority` is below ``fraction`` (each with that probability,
+    independently), and at least ``minimum`` (those of least priority; all if fewer),
+    sorted."""
+    inferred = np.asarray(inferred, dtype=np.int64)
+    u = sample_priority(inferred, seed)
+    below = u < fraction
+    n = min(inferred.size, int(minimum))
+    if below.sum() >= n:
+        return np.sort(inferred[below])
+    return np.sort(inferred[np.argsort(u, kind="stable")[:n]])
+
+
 @dataclass
 class VerificationSummary:
     """Agreement of inferred labels with simulation on a seeded random sample."""
@@ -480,14 +511,13 @@ class Refinement:
     ) -> np.ndarray:
         """A seeded random sample of inferred points (flat indices) to simulate as a check.
 
-        Call after refinement is done (:meth:`wave` returned nothing). The
-        sample holds ``max(minimum, round(fraction * inferred))`` points, at most
-        all of the inferred ones.
+        Call after refinement is done (:meth:`wave` returned nothing). Each
+        inferred point is in the sample with probability ``fraction``, and the
+        sample holds at least ``minimum`` points, at most all of the inferred ones
+        (:func:`verification_sample`).
         """
         inferred = np.flatnonzero(~self.simulated.ravel())
-        n = min(inferred.size, max(int(minimum), int(round(fraction * inferred.size))))
-        rng = np.random.default_rng(seed)
-        self._sample = np.sort(rng.choice(inferred, size=n, replace=False)).astype(np.int64)
+        self._sample = verification_sample(inferred, fraction, minimum, seed)
         self._inferred_before = int(inferred.size)
         return self._sample
 
