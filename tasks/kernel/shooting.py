@@ -60,9 +60,18 @@ from tasks.kernel.starts import start_phase
 REC_ROWS = 512
 # How far (relative to its phase) a recorded event may move in a followed period:
 # for a difference column (:func:`_fd_jacobian`) and for a Newton step on the
-# followed map (:func:`_follow_newton`, verified by a full period after).
+# followed map (:func:`_follow_newton`, verified by a full period after: a step
+# whose events moved by up to half their phase is still a candidate; 0.1 ended
+# the steps across the short phases next to a change of regime, where each then
+# cost a full period).
 FD_REACH = 1e-3
-STEP_REACH = 0.1
+STEP_REACH = 0.5
+# Newton's method on an event of a followed period (:func:`_follow_records`) has
+# converged when its correction is below EVENT_RTOL of the time, or below EVENT_NOISE
+# of it and no longer halving (rounding: the observable is known to about 1e-16 of
+# the motion, and its slope at the event can be small, e.g. where a tiny slip stops).
+EVENT_RTOL = 1e-15
+EVENT_NOISE = 1e-13
 # Newton steps on the followed map between two full periods of :func:`_shoot`.
 FOLLOW_NEWTON = 12
 # Halvings of a Newton step on the followed map that does not reduce the residual.
@@ -307,15 +316,22 @@ def _follow_records(X, mode, rec, nr, ctx, work, theta, out, reach):
             if stuck:
                 target = sc[BETA] if rec[j + 1, REC_G] > 0.0 else -sc[BETA]
             settled = False
+            dt_prev = np.inf
             for _ in range(12):
                 y, dy = evaluate(seg, sc, t, ev, evd)
                 if not (dy != 0.0 and math.isfinite(dy)):
                     return False
                 dt = (target - y) / dy
                 t += dt
-                if abs(dt) <= 1e-15 * (1.0 + abs(t)):
+                # converged, or at the rounding of the observable: a correction that
+                # no longer halves is noise (a small slope, e.g. the stop of a tiny
+                # slip, amplifies it far above 1e-15)
+                if abs(dt) <= EVENT_RTOL * (1.0 + abs(t)) or (
+                    abs(dt) <= EVENT_NOISE * (1.0 + abs(t)) and abs(dt) > 0.5 * dt_prev
+                ):
                     settled = True
                     break
+                dt_prev = abs(dt)
             if not settled or not (
                 abs(t - (rec[j + 1, REC_TAU] - tau)) <= reach * max(t_rec, 1e-3)
             ):
