@@ -20,7 +20,18 @@ from tasks import Scene
 from tasks.classifier import classify_given, scene_modes_cached, settings_args, start_codes
 from tasks.fidelity import resolve
 from tasks.kernel.context import _context
-from tasks.kernel.layout import CTX_B, CTX_PROJ, CTX_T, CTX_W, N_STATS, REC_X
+from tasks.kernel.layout import (
+    CTX_B,
+    CTX_PROJ,
+    CTX_T,
+    CTX_W,
+    EV_REVERSAL,
+    EV_SECTION,
+    N_STATS,
+    REC_KIND,
+    REC_TAU,
+    REC_X,
+)
 from tasks.kernel.shooting import (
     REC_ROWS,
     STEP_REACH,
@@ -86,3 +97,62 @@ def test_followed_period_of_a_tiny_slip_equals_the_simulated_one(beta, rel):
     assert ok, "the followed period failed where the simulated one has the same events"
     scale = np.max(np.abs(simulated))
     assert np.max(np.abs(followed - simulated)) <= 1e-10 * scale
+
+
+@njit(cache=False)
+def _followed_past_a_reversal(r, beta, scene, settings, row, rel_velocity):
+    """The section state ``row`` (sliding) with its contact velocity turned to
+    ``-rel_velocity`` times itself reverses just after the section; its recorded
+    period is followed from ``row`` itself (already past that reversal) and compared
+    with the simulated period from ``row``. Returns the first two recorded event
+    kinds, the reversal's time after the section, whether the follow succeeded, and
+    the followed and simulated end states."""
+    n = scene[0].shape[0]
+    ctx, work, _, _, _ = _context(r, beta, scene, settings)
+    b = ctx[CTX_B]
+    mode = int(row[2 * n])
+    theta = row[2 * n + 1]
+    X0 = row[: 2 * n].copy()
+    v = 0.0
+    bb = 0.0
+    for i in range(n):
+        v += b[i] * X0[n + i]
+        bb += b[i] * b[i]
+    Xm = X0.copy()
+    for i in range(n):
+        Xm[n + i] -= (1.0 + rel_velocity) * v * b[i] / bb
+    stats = np.zeros(N_STATS)
+    rec = np.empty((REC_ROWS, REC_X + 2 * n))
+    rec_n = np.zeros(1, dtype=np.int64)
+    _period_recorded(Xm, _phase_of(Xm, mode, b), stats, ctx, work, theta, rec, rec_n)
+    followed = np.empty(2 * n)
+    ok = _follow_records(X0, mode, rec, rec_n[0], ctx, work, theta, followed, STEP_REACH)
+    rec2 = np.empty((REC_ROWS, REC_X + 2 * n))
+    rec2_n = np.zeros(1, dtype=np.int64)
+    simulated, _ = _period_recorded(
+        X0, _phase_of(X0, mode, b), stats, ctx, work, theta, rec2, rec2_n
+    )
+    return rec[0, REC_KIND], rec[1, REC_KIND], rec[1, REC_TAU] - theta, ok, followed, simulated
+
+
+def test_a_start_past_a_reversal_after_the_section_follows_the_rest_of_the_pattern():
+    # a secant seed next to the motion bound overshoots the small contact velocity at
+    # the section: its period reverses at once, the next iterate no longer does, and
+    # the followed map once refused it (another starting phase), so every such step
+    # cost a full period
+    scene = Scene("ground", 2, 1, gamma=1.0, kappa=1.0)
+    r = np.array([0.7796, 0.7796])
+    betas = np.array([0.995, 0.998])
+    res, final = classify_given(scene, r, betas, None)
+    assert res.regime[1] == STICK_SLIP
+    n = 2
+    assert final[1, 2 * n] != 0  # the section falls in a slip phase
+    resolved = resolve("balanced")
+    settings = settings_args(resolved, start_codes(resolved)[0])
+    args = scene_modes_cached(scene).kernel_args()
+    k0, k1, t_rev, ok, followed, simulated = _followed_past_a_reversal(
+        r[1], betas[1], args, settings, final[1], 1e-3
+    )
+    assert k0 == EV_SECTION and k1 == EV_REVERSAL and 0.0 < t_rev < 1e-3
+    assert ok, "the pattern after the reversal was not followed"
+    assert np.max(np.abs(followed - simulated)) <= 1e-10 * np.max(np.abs(simulated))

@@ -37,6 +37,7 @@ from tasks.kernel.layout import (
     ETAD_OFF,
     EV_END,
     EV_GRAZE,
+    EV_REVERSAL,
     LEAF,
     N_STATS,
     REC_G,
@@ -269,8 +270,10 @@ def _follow_records(X, mode, rec, nr, ctx, work, theta, out, reach):
     (the events move smoothly with the start) at the cost of a few evaluations per
     event instead of a bracket scan. Writes the end state into ``out``; returns
     False (``out`` undefined) where the pattern may not hold: a different starting
-    phase, an event time that Newton's method does not settle or that moves by more
-    than ``reach`` times its phase (or beyond the section).
+    phase (except a start past a reversal that the record has within ``reach`` of
+    the section: the pattern is then followed from that reversal), an event time
+    that Newton's method does not settle or that moves by more than ``reach`` times
+    its phase (or beyond the section).
     """
     n = X.shape[0] // 2
     seg_slip = ctx[CTX_SEG_SLIP]
@@ -280,8 +283,19 @@ def _follow_records(X, mode, rec, nr, ctx, work, theta, out, reach):
     b = ctx[CTX_B]
     eta, etad, eta_s, etad_s, q, _ = work
     phase = _phase_of(X, mode, b)
+    first = 0
     if phase != int(rec[0, REC_MODE]):
-        return False
+        # the recorded period reverses just after the section and this start has
+        # already reversed (its contact velocity has the sign after the reversal,
+        # e.g. a secant seed overshooting zero): the pattern from the reversal on
+        if not (
+            nr > 2
+            and rec[1, REC_KIND] == EV_REVERSAL
+            and phase == int(rec[1, REC_MODE])
+            and rec[1, REC_TAU] - theta <= reach * max(rec[2, REC_TAU] - rec[1, REC_TAU], 1e-3)
+        ):
+            return False
+        first = 1
     # the state is carried in ``out`` itself (views: nothing allocated)
     x = out[:n]
     xd = out[n:]
@@ -290,7 +304,7 @@ def _follow_records(X, mode, rec, nr, ctx, work, theta, out, reach):
     tau = theta
     tau_end = theta + TWO_PI
     v0 = _dot(b, xd)
-    for j in range(nr - 1):
+    for j in range(first, nr - 1):
         stuck = phase == 0
         d0 = 0.0
         if stuck:
