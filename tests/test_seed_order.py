@@ -54,7 +54,9 @@ def test_midpoint_prediction_is_the_mean_of_the_two_orbits():
 def test_interpolated_seeds_settle_the_midpoints_in_fewer_periods():
     """Every other point of a beta segment solved; each midpoint seeded by both ends
     (interpolation first) costs fewer periods than seeded by one end (its copied orbit):
-    24 against 34 periods for 12 points here (the old order, copy first, 30)."""
+    24 against 30 periods for 12 points here (34 before the followed map settled events
+    at rounding and followed steps across short phases, tasks.kernel.shooting; the old
+    order, copy first, 30)."""
     r, beta = np.full(33, 0.9), np.linspace(0.3, 1.2, 33)
     ends, final = classify_given(SCENE, r[::2], beta[::2], None)
     orbit = np.isfinite(final).all(axis=1)
@@ -80,7 +82,7 @@ def test_interpolated_seeds_settle_the_midpoints_in_fewer_periods():
         _agree(merged, cold)
     c_both = sum(int(x.cycles[0]) for x in both)
     c_one = sum(int(x.cycles[0]) for x in one)
-    assert c_both < 0.8 * c_one, (c_both, c_one)
+    assert c_both < 0.85 * c_one, (c_both, c_one)
 
 
 def test_a_point_across_a_regime_change_is_seeded_from_its_own_side():

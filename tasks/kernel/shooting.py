@@ -37,6 +37,7 @@ from tasks.kernel.layout import (
     ETAD_OFF,
     EV_END,
     EV_GRAZE,
+    EV_REVERSAL,
     LEAF,
     N_STATS,
     REC_G,
@@ -60,9 +61,18 @@ from tasks.kernel.starts import start_phase
 REC_ROWS = 512
 # How far (relative to its phase) a recorded event may move in a followed period:
 # for a difference column (:func:`_fd_jacobian`) and for a Newton step on the
-# followed map (:func:`_follow_newton`, verified by a full period after).
+# followed map (:func:`_follow_newton`, verified by a full period after: a step
+# whose events moved by up to half their phase is still a candidate; 0.1 ended
+# the steps across the short phases next to a change of regime, where each then
+# cost a full period).
 FD_REACH = 1e-3
-STEP_REACH = 0.1
+STEP_REACH = 0.5
+# Newton's method on an event of a followed period (:func:`_follow_records`) has
+# converged when its correction is below EVENT_RTOL of the time, or below EVENT_NOISE
+# of it and no longer halving (rounding: the observable is known to about 1e-16 of
+# the motion, and its slope at the event can be small, e.g. where a tiny slip stops).
+EVENT_RTOL = 1e-15
+EVENT_NOISE = 1e-13
 # Newton steps on the followed map between two full periods of :func:`_shoot`.
 FOLLOW_NEWTON = 12
 # Halvings of a Newton step on the followed map that does not reduce the residual.
@@ -260,8 +270,10 @@ def _follow_records(X, mode, rec, nr, ctx, work, theta, out, reach):
     (the events move smoothly with the start) at the cost of a few evaluations per
     event instead of a bracket scan. Writes the end state into ``out``; returns
     False (``out`` undefined) where the pattern may not hold: a different starting
-    phase, an event time that Newton's method does not settle or that moves by more
-    than ``reach`` times its phase (or beyond the section).
+    phase (except a start past a reversal that the record has within ``reach`` of
+    the section: the pattern is then followed from that reversal), an event time
+    that Newton's method does not settle or that moves by more than ``reach`` times
+    its phase (or beyond the section).
     """
     n = X.shape[0] // 2
     seg_slip = ctx[CTX_SEG_SLIP]
@@ -271,8 +283,19 @@ def _follow_records(X, mode, rec, nr, ctx, work, theta, out, reach):
     b = ctx[CTX_B]
     eta, etad, eta_s, etad_s, q, _ = work
     phase = _phase_of(X, mode, b)
+    first = 0
     if phase != int(rec[0, REC_MODE]):
-        return False
+        # the recorded period reverses just after the section and this start has
+        # already reversed (its contact velocity has the sign after the reversal,
+        # e.g. a secant seed overshooting zero): the pattern from the reversal on
+        if not (
+            nr > 2
+            and rec[1, REC_KIND] == EV_REVERSAL
+            and phase == int(rec[1, REC_MODE])
+            and rec[1, REC_TAU] - theta <= reach * max(rec[2, REC_TAU] - rec[1, REC_TAU], 1e-3)
+        ):
+            return False
+        first = 1
     # the state is carried in ``out`` itself (views: nothing allocated)
     x = out[:n]
     xd = out[n:]
@@ -281,7 +304,7 @@ def _follow_records(X, mode, rec, nr, ctx, work, theta, out, reach):
     tau = theta
     tau_end = theta + TWO_PI
     v0 = _dot(b, xd)
-    for j in range(nr - 1):
+    for j in range(first, nr - 1):
         stuck = phase == 0
         d0 = 0.0
         if stuck:
@@ -307,15 +330,22 @@ def _follow_records(X, mode, rec, nr, ctx, work, theta, out, reach):
             if stuck:
                 target = sc[BETA] if rec[j + 1, REC_G] > 0.0 else -sc[BETA]
             settled = False
+            dt_prev = np.inf
             for _ in range(12):
                 y, dy = evaluate(seg, sc, t, ev, evd)
                 if not (dy != 0.0 and math.isfinite(dy)):
                     return False
                 dt = (target - y) / dy
                 t += dt
-                if abs(dt) <= 1e-15 * (1.0 + abs(t)):
+                # converged, or at the rounding of the observable: a correction that
+                # no longer halves is noise (a small slope, e.g. the stop of a tiny
+                # slip, amplifies it far above 1e-15)
+                if abs(dt) <= EVENT_RTOL * (1.0 + abs(t)) or (
+                    abs(dt) <= EVENT_NOISE * (1.0 + abs(t)) and abs(dt) > 0.5 * dt_prev
+                ):
                     settled = True
                     break
+                dt_prev = abs(dt)
             if not settled or not (
                 abs(t - (rec[j + 1, REC_TAU] - tau)) <= reach * max(t_rec, 1e-3)
             ):
