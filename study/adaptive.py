@@ -26,13 +26,12 @@ computed again in the same run.
 
 A plane of one contact with warm starts starts with tiles instead
 (:mod:`study.tiles`): strips of whole coarse cells, each refined by one worker
-alone, which then simulates its share of the verification sample (the points it
-left inferred of a seeded priority below the sample's fraction,
-:func:`tasks.adaptive.verification_sample`); their points arrive as a point
-list's do, and point lists follow for what they left unsettled, then those of
-the sample the tiles did not hold (none, unless the sample's minimum takes more
-than they drew). A finished tile is saved under its own key and reused by a
-rerun.
+alone (with :attr:`AdaptivePlan.sample_in_tiles`, then also its share of the
+verification sample: the points it left inferred of a seeded priority below the
+sample's fraction, :func:`tasks.adaptive.verification_sample`); their points
+arrive as a point list's do, and point lists follow for what they left
+unsettled, then the verification sample's (those the tiles did not hold). A
+finished tile is saved under its own key and reused by a rerun.
 
 The result has the layout of a grid scene (dims ``(gamma, kappa, beta, r)``,
 every variable of :data:`tasks.result.FIELDS`) plus ``simulated`` and
