@@ -32,6 +32,8 @@ machine stretches the wall seconds of one run more than the other's, not the CPU
 seconds), the adaptive study's client process alone (refinement, Dask client,
 saving, the result file) and the ratio, the labels equal to the dense grid's and
 the verification sample;
+``--tile-sample`` adds the study with the verification sample simulated inside
+the tiles (``study.adaptive.AdaptivePlan.sample_in_tiles``),
 ``--barriers`` adds the old wave-by-wave refinement
 (``study.adaptive.AdaptivePlan.barriers``), ``--before`` the adaptive study as it
 was before its point lists were seeded from the solved orbits of their cells'
@@ -229,6 +231,8 @@ BEFORE = [
 #: ``--untiled``: the adaptive study without tiles (study.tiles): the coarse lattice as
 #: point lists.
 UNTILED = [["study.adaptive", "AdaptivePlan.tiles", False]]
+#: ``--tile-sample``: each tile also simulates its share of the verification sample.
+TILE_SAMPLE = [["study.adaptive", "AdaptivePlan.sample_in_tiles", True]]
 #: ``--barriers``: the old wave-by-wave refinement.
 BARRIERS = [["study.adaptive", "AdaptivePlan.barriers", True]]
 RUNNER = Path(__file__).resolve().parent / "study_runner.py"
@@ -370,6 +374,8 @@ def cluster_main(args, n_r: int, n_beta: int) -> int:
             befores.append(("before", here, BEFORE))
         if args.untiled:
             befores.append(("untiled", here, UNTILED))
+        if args.tile_sample:
+            befores.append(("sample in tiles", here, TILE_SAMPLE))
         if other is not None:
             befores.append((f"{args.code}", other, None))
         for sc in scenes:
@@ -709,6 +715,9 @@ def main(argv: list[str] | None = None) -> int:
         help="--cluster: also the adaptive study without tiles (study.tiles), same run",
     )
     ap.add_argument("--timeline", action="store_true", help="where the wall time goes")
+    ap.add_argument(
+        "--tile-sample", action="store_true", help="--cluster: the sample inside the tiles too"
+    )
     ap.add_argument("--example", type=int, default=0, help="time the CLI on the example N times")
     ap.add_argument(
         "--code",

@@ -26,13 +26,12 @@ computed again in the same run.
 
 A plane of one contact with warm starts starts with tiles instead
 (:mod:`study.tiles`): strips of whole coarse cells, each refined by one worker
-alone, which then simulates its share of the verification sample (the points it
-left inferred of a seeded priority below the sample's fraction,
-:func:`tasks.adaptive.verification_sample`); their points arrive as a point
-list's do, and point lists follow for what they left unsettled, then those of
-the sample the tiles did not hold (none, unless the sample's minimum takes more
-than they drew). A finished tile is saved under its own key and reused by a
-rerun.
+alone (with :attr:`AdaptivePlan.sample_in_tiles`, then also its share of the
+verification sample: the points it left inferred of a seeded priority below the
+sample's fraction, :func:`tasks.adaptive.verification_sample`); their points
+arrive as a point list's do, and point lists follow for what they left
+unsettled, then the verification sample's (those the tiles did not hold). A
+finished tile is saved under its own key and reused by a rerun.
 
 The result has the layout of a grid scene (dims ``(gamma, kappa, beta, r)``,
 every variable of :data:`tasks.result.FIELDS`) plus ``simulated`` and
@@ -197,6 +196,11 @@ class AdaptivePlan(ScenePlan):
     local_points_idle: int = LOCAL_POINTS_IDLE
     #: False: no tiles (:mod:`study.tiles`), the coarse lattice handed out as point lists.
     tiles: bool = True
+    #: True: each settled tile also simulates its share of the verification sample
+    #: (:func:`study.tiles.tile_chunk`), no sample round after the refinement; the same
+    #: map. Off: measured no faster (docs/adaptive.md, Tiles: the inferred fill, which
+    #: the sample round hides, then follows the last tile).
+    sample_in_tiles: bool = False
     #: No byte shuffle in the netCDF file (:data:`study.netcdf.COMPRESSION`): inferred
     #: points repeat their cell's corner, which deflate finds better unshuffled.
     nc_shuffle: bool = False
@@ -256,12 +260,13 @@ class AdaptivePlan(ScenePlan):
 
     def expected(self, n: int | None) -> Expected:
         """What a point list of ``n`` points holds; a tile's file (any length, ``n`` None)
-        also which of its points are candidates of the verification sample."""
+        with :attr:`sample_in_tiles` also which of its points are candidates of the
+        verification sample."""
         out = {
             k: (dt, None if n is None else self._shape(k, (n,)))
             for k, dt in self.point_fields().items()
         }
-        out |= {"verify": ("bool", None)} if n is None else {}
+        out |= {"verify": ("bool", None)} if n is None and self.sample_in_tiles else {}
         return out | SECONDS | {"index": ("int64", None if n is None else (n,))}
 
     def point_fields(self) -> dict[str, str]:
@@ -688,7 +693,7 @@ class AdaptivePlan(ScenePlan):
         hint = self._refinement(pl).hint
         spec = self.spec
         threshold = sample_threshold(spec.verify_fraction, DEFAULT_VERIFY_MIN, pl.ref.n_points)
-        verify = (threshold, VERIFY_SEED)  # each tile simulates its share of the sample
+        verify = (threshold, VERIFY_SEED) if self.sample_in_tiles else None
         for i0, i1 in longest_first(rows, hint, self._axes["r"], spec.coarse_step):
             task = tile_task(pl.ident["physics"], self.settings, self._axes, (i0, i1), hint, verify)
             task["coarse_step"] = self.spec.coarse_step

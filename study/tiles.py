@@ -5,7 +5,8 @@ tasks instead of its coarse lattice as point lists: strips of whole coarse cells
 along r (:func:`tasks.tiles.strips`), :data:`TILES_PER_THREAD` per worker thread
 so the work balances. A worker refines its tile by itself
 (:func:`tasks.tiles.refine_tile`: no round trip client -> scheduler -> worker per
-refinement level), then simulates its share of the plane's verification sample
+refinement level), then (``study.adaptive.AdaptivePlan.sample_in_tiles``, off by
+default) simulates its share of the plane's verification sample
 (:func:`_with_sample`: the points it left inferred whose seeded priority,
 :func:`tasks.adaptive.sample_priority`, is below the sample's fraction), and
 returns every point it simulated (the plane's flat indices ``index``, ``verify``
@@ -15,7 +16,8 @@ and keeps the candidates (:class:`Candidates`); that refinement then continues
 with point lists where the tiles meet (the cells beside a tile's edge, which a
 point simulated by the neighbouring tile may reopen: a candidate answers it),
 and the plane's sample, drawn from its final inferred points, is a subset of the
-candidates: no round of its own after the refinement.
+candidates: no round of its own after the refinement (otherwise the sample goes
+out as point lists after it).
 
 A finished tile is saved in the work folder under its own key (:func:`tile_key`,
 never merged with point lists): a rerun hands its points to the refinement

@@ -8,9 +8,10 @@
 * tiles that simulate their inferred points of priority below the threshold
   (:func:`study.tiles.sample_threshold`) hold every point of the plane's final
   sample, whatever the tiles leave for the plane to refine (synthetic maps);
-* a tiled study on a real LocalCluster computes no point list for its sample, and
-  its ``simulated`` and ``verification`` arrays equal those of the study without
-  tiles.
+* a tiled study with ``AdaptivePlan.sample_in_tiles`` on a real LocalCluster
+  computes no point list for its sample, and its ``simulated`` and
+  ``verification`` arrays equal those of the study without tiles (and of the
+  default, the sample as its own round).
 """
 
 from __future__ import annotations
@@ -97,7 +98,7 @@ def test_tiles_candidates_hold_the_planes_final_sample(step, minimum):
 
 
 @pytest.mark.cluster
-def test_tiled_study_computes_no_list_for_its_sample_and_equals_the_untiled(
+def test_sample_inside_the_tiles_needs_no_list_and_gives_the_same_map(
     tmp_path, cluster_client, monkeypatch
 ):
     from study import run_study
@@ -116,19 +117,25 @@ def test_tiled_study_computes_no_list_for_its_sample_and_equals_the_untiled(
 
     monkeypatch.setattr(AdaptivePlan, "accept", record)
     out = {}
-    for tiles in (True, False):
+    for tiles, inside in ((True, True), (True, False), (False, True)):
         monkeypatch.setattr(AdaptivePlan, "tiles", tiles)
+        monkeypatch.setattr(AdaptivePlan, "sample_in_tiles", inside)
         phases.clear()
         log = io.StringIO()
-        out[tiles] = tmp_path / f"tiles-{tiles}.nc"
-        run_study(study, out[tiles], client=cluster_client, progress=False, stream=log)
+        out[tiles, inside] = tmp_path / f"tiles-{tiles}-{inside}.nc"
+        run_study(study, out[tiles, inside], client=cluster_client, progress=False, stream=log)
         assert ("8 of 8 tiles computed" in log.getvalue()) is tiles
-        assert ("verify" in phases) is not tiles  # a sample round only without tiles
-    with xr.open_dataset(out[True]) as a, xr.open_dataset(out[False]) as b:
+        assert ("verify" in phases) is not (tiles and inside)  # a sample round, or none
+    with (
+        xr.open_dataset(out[True, True]) as a,
+        xr.open_dataset(out[True, False]) as b,
+        xr.open_dataset(out[False, True]) as c,
+    ):
         for name in ("simulated", "verification", "regime"):
             np.testing.assert_array_equal(a[name].values, b[name].values)
+            np.testing.assert_array_equal(a[name].values, c[name].values)
         sampled = int((a["verification"].values > 0).sum())
-        assert sampled == a.attrs["verification_sampled"] == b.attrs["verification_sampled"]
+        assert sampled == a.attrs["verification_sampled"] == c.attrs["verification_sampled"]
         assert sampled >= 200
 
 
