@@ -9,6 +9,10 @@ held start; the reference from the same start. Prints per scene the regimes
 compared and agreeing, every difference, and the CPU time of each side.
 
     python benchmarks/bench_multicontact_reference.py [points_per_scene]   (default 25)
+    python benchmarks/bench_multicontact_reference.py 6 --damped
+
+``--damped`` gives every scene of the draw Rayleigh damping C = 0.03 M + 0.01 K
+(docs/contacts.md 7; the reference then integrates the damped state space).
 """
 
 from __future__ import annotations
@@ -16,15 +20,29 @@ from __future__ import annotations
 import sys
 import time
 
-from tasks.multicontact import classify_multi
+from tasks.multicontact import MultiScene, classify_multi
 from tasks.multicontact.reference import DRAW_SEED, agreement, draw_points, draw_scenes
 
+#: The damping of ``--damped``.
+DAMPING = ("rayleigh", 0.03, 0.01)
 
-def main(per_scene: int = 25) -> None:
+
+def damped(scene: MultiScene) -> MultiScene:
+    """``scene`` with :data:`DAMPING`."""
+    kw = scene.structures[0].kwargs()
+    return MultiScene.from_matrices(
+        kw["mass"], kw["stiffness"], kw["load"], list(scene.contacts),
+        beta_ratio=list(scene.beta_ratio), damping=DAMPING,
+    )  # fmt: skip
+
+
+def main(per_scene: int = 25, with_damping: bool = False) -> None:
     total_c = total_a = 0
     rows = []
     all_misses = []
     for index, (name, scene) in enumerate(draw_scenes()):
+        if with_damping:
+            scene = damped(scene)
         r, beta = draw_points(scene, index, per_scene)
         t0 = time.process_time()
         res = classify_multi(scene, r, beta)
@@ -39,6 +57,7 @@ def main(per_scene: int = 25) -> None:
         total_a += agreed
     print(
         f"seed {DRAW_SEED}, {per_scene} points per scene, simulator fidelity balanced, held start"
+        + (f", damping {DAMPING}" if with_damping else "")
     )
     head = f"{'scene':<28}{'points':>7}{'sim nc':>7}{'ref nc':>7}{'compared':>9}{'agree':>7}"
     print(head + f"{'sim s':>8}{'ref s':>8}")
@@ -53,4 +72,5 @@ def main(per_scene: int = 25) -> None:
 
 
 if __name__ == "__main__":
-    main(*(int(a) for a in sys.argv[1:2]))
+    counts = [int(a) for a in sys.argv[1:] if a.isdigit()][:1]
+    main(*counts, with_damping="--damped" in sys.argv)

@@ -291,3 +291,26 @@ def test_damping_refused_with_several_contacts_names_the_field():
     np.testing.assert_allclose(full.damping_matrix(1.3), coeffs.damping_matrix(1.3), rtol=1e-15)
     again = MultiScene.from_dict(coeffs.to_dict())
     assert again == coeffs
+
+
+def test_damped_starts_reach_one_steady_state():
+    """With C definite the steady state is unique (docs/structures.md 4.6): held, rest
+    and two seeded random starts reach the same regimes and slip amplitudes."""
+    M, K, p = structure(800, 3)
+    scene = MultiScene.from_matrices(
+        M, K, p, [("ground", 0), ("between", 1, 2)], beta_ratio=[1.0, 0.6], damping=RAYLEIGH
+    )
+    r, beta = grid(M, K, 5, [0.05, 0.3, 0.8])
+    res = classify_multi(scene, r, beta, "exact", starts=("held", "rest"), n_random=2)
+    both = res.converged & np.all(res.regime_rest >= 0, axis=-1)
+    assert both.mean() > 0.9
+    np.testing.assert_array_equal(res.regime[both], res.regime_rest[both])
+    assert not res.start_dependent.any()
+    rest = classify_multi(scene, r, beta, "exact", initial_condition="rest")
+    ok = res.converged & rest.converged
+    np.testing.assert_allclose(
+        rest.slip_amplitude[ok], res.slip_amplitude[ok], rtol=1e-7, atol=1e-10
+    )
+    np.testing.assert_allclose(
+        rest.dissipation_viscous[ok], res.dissipation_viscous[ok], rtol=1e-7, atol=1e-10
+    )

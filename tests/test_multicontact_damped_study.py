@@ -123,3 +123,42 @@ def test_bad_damping_with_several_contacts_exit_2_one_line(tmp_path, run_cli, ca
     assert len(lines) == 1 and lines[0].startswith("study: error: "), proc.stderr
     assert why in lines[0], lines[0]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["study.toml"]
+
+
+def test_adaptive_and_points_modes_of_the_damped_beam(tmp_path, run_cli):
+    """The other scene modes with damping and several contacts, through the CLI: an
+    adaptive map (its simulated points are the simulator's) and a point list."""
+    text = EXAMPLE.read_text()
+    spec = tomllib.loads(text)["scene"][0]
+    adaptive = text.replace(
+        "r = {start = 0.1, stop = 3.0, num = 16}", "r = {start = 0.1, stop = 3.0, num = 17}"
+    ).replace(
+        "beta = {start = 0.0, stop = 2.6, num = 12}",
+        'beta = {start = 0.0, stop = 2.6, num = 9}\nmode = "adaptive"',
+    )
+    points = text.split("r = {start")[0] + "points = [[0.6, 0.3], [1.1, 0.9], [2.4, 0.2]]\n"
+    scene = beam(
+        **{k: v for k, v in spec["beam"].items() if k != "supports"},
+        supports=spec["beam"]["supports"],
+        damping=tuple(["rayleigh", *spec["damping"]["rayleigh"]]),
+        beta_ratio=spec["beta_ratio"],
+    )
+    for name, body in (("adaptive", adaptive), ("points", points)):
+        (tmp_path / f"{name}.toml").write_text(body)
+        proc = run_cli("run", f"{name}.toml", "-o", f"{name}.nc", "--workers", "1", timeout=600)
+        assert proc.returncode == 0, proc.stderr[-3000:]
+        with xr.open_dataset(tmp_path / f"{name}.nc") as ds:
+            assert "dissipation_viscous" in ds and "damping_matrix" in ds
+            if name == "adaptive":
+                sim = ds["simulated"].values.astype(bool)
+                ib, ir = np.nonzero(sim)
+                r, beta = ds["r"].values[ir], ds["beta"].values[ib]
+                stored = ds["regime"].values[:, ib, ir].T
+                viscous = ds["dissipation_viscous"].values[ib, ir]
+            else:
+                r, beta = ds["r"].values, ds["beta"].values
+                stored = ds["regime"].transpose("point", "contact").values
+                viscous = ds["dissipation_viscous"].values
+        res = classify_multi(scene, r, beta, spec.get("fidelity", "fast"))
+        np.testing.assert_array_equal(stored, res.regime, err_msg=name)
+        np.testing.assert_allclose(viscous, res.dissipation_viscous, rtol=1e-12, err_msg=name)

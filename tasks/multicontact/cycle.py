@@ -19,7 +19,6 @@ import math
 import numpy as np
 from numba import njit
 
-from tasks.kernel.design import _GL_NODES, _GL_WEIGHTS
 from tasks.kernel.events import DIP_STACK, never_unsticks, next_event
 from tasks.kernel.layout import (
     ALPHA,
@@ -48,6 +47,7 @@ from tasks.kernel.layout import (
 )
 from tasks.kernel.phases import STICK_RTOL
 from tasks.kernel.propagation import evaluate
+from tasks.multicontact import viscous
 from tasks.multicontact.decide import decide
 from tasks.multicontact.layout import (
     CS_DMAX,
@@ -64,8 +64,7 @@ from tasks.multicontact.layout import (
     CX_B,
     CX_BETAS,
     CX_BX,
-    CX_CDIAG,
-    CX_DAMPED,
+    CX_COMPLIANCE,
     CX_H,
     CX_HKX,
     CX_HP,
@@ -73,10 +72,7 @@ from tasks.multicontact.layout import (
     CX_LOAD_COS,
     CX_MAX_EVENTS,
     CX_OMEGA,
-    CX_R,
     CX_R2,
-    CX_RHCX,
-    CX_SIGMA,
     CX_SIZE,
     CX_STEP,
     CX_STICK_MIN,
@@ -95,9 +91,6 @@ from tasks.regimes import EVENT_LIMIT, NUMERICAL_FAILURE, WORK_LIMIT
 
 #: Points per phase where the final orbit's forces and velocities are checked.
 ORBIT_SAMPLES = 16
-#: The most Gauss-Legendre sub-intervals per phase of :func:`viscous_work` (the nodes
-#: and weights are the design pass's, :mod:`tasks.kernel.design`).
-VISCOUS_MAX_INTERVALS = 100000
 
 
 @njit(cache=True)
@@ -159,7 +152,6 @@ def start_phase(x, xd, tau, stuck, signs, zeroed, ctx, segs, scs, d, eta0, etad0
         segs[0, LOAD_CONST, a] = lc / r2
     ctau = math.cos(tau)
     stau = math.sin(tau)
-    damped = ctx[CX_DAMPED]
     for c in range(k):
         if not (active >> c) & 1:
             continue
@@ -174,10 +166,6 @@ def start_phase(x, xd, tau, stuck, signs, zeroed, ctx, segs, scs, d, eta0, etad0
         sc[TAU0] = tau
         sc[COS_TAU0] = ctau
         sc[SIN_TAU0] = stau
-        if damped:  # modal decay rates (docs/structures.md 4.1)
-            sc[DAMPED] = 1.0
-            for a in range(m):
-                seg[DAMP, a] = ctx[CX_SIGMA][stuck, a]
         if (stuck >> c) & 1:
             g = ctx[CX_HP][stuck, c] * ctau
             for i in range(n):
@@ -186,11 +174,6 @@ def start_phase(x, xd, tau, stuck, signs, zeroed, ctx, segs, scs, d, eta0, etad0
                 seg[ALPHA, a] = -HKX[c, a]
                 seg[DELTA, a] = 0.0
                 g += seg[ALPHA, a] * eta0[a]
-            if damped:  # the viscous part -r (H_S C X_S)_c eta'
-                rHCX = ctx[CX_RHCX][stuck]
-                for a in range(m):
-                    seg[DELTA, a] = -rHCX[c, a]
-                    g += seg[DELTA, a] * etad0[a]
             sc[OBS_COS] = ctx[CX_HP][stuck, c]
             sc[OBS0] = g
             sc[KIND] = KIND_STICK
@@ -207,32 +190,10 @@ def start_phase(x, xd, tau, stuck, signs, zeroed, ctx, segs, scs, d, eta0, etad0
             sc[KIND] = KIND_SLIP
             sc[SIGN] = signs[c]
             sc[BETA] = betas[c]
+    D = ctx[CX_COMPLIANCE]
+    if D.shape[0] > k:  # damped (docs/contacts.md 7)
+        viscous.damp_phase(D, n, k, stuck, active, m, etad0, segs, scs)
     return m
-
-
-@njit(cache=True)
-def viscous_work(seg, sc, t, cdiag, r):
-    """``int_0^t r x'^T C x' dtau = r sum_a cdiag_a int eta_a'^2`` over a damped phase of
-    length ``t`` (``X_S^T C X_S`` diagonal, docs/contacts.md 7): 4-point Gauss-Legendre
-    on sub-intervals short against the fastest rate of the phase (``Omega_a + 2 sigma_a``
-    and the excitation), where the rule's error is below 1e-12 of the integral."""
-    m = seg.shape[1]
-    rate = 1.0
-    for a in range(m):
-        rate = max(rate, seg[OMEGA, a] + 2.0 * seg[DAMP, a])
-    n_sub = min(max(1, int(math.ceil(2.0 * rate * t))), VISCOUS_MAX_INTERVALS)
-    h = t / n_sub
-    eta = np.empty(m)
-    etad = np.empty(m)
-    total = 0.0
-    for j in range(n_sub):
-        for q in range(4):
-            evaluate(seg, sc, (j + _GL_NODES[q]) * h, eta, etad)
-            acc = 0.0
-            for a in range(m):
-                acc += cdiag[a] * etad[a] * etad[a]
-            total += _GL_WEIGHTS[q] * acc
-    return r * h * total
 
 
 @njit(cache=True)
@@ -399,22 +360,24 @@ def run_cycle(x, xd, stuck, signs, cst, gst, ctx, tau_start, tau_end, max_work, 
                 seg[ETAD0, a] = etad0[a]
                 seg[LOAD_COS, a] = ctx[CX_LOAD_COS][stuck, a]
                 seg[LOAD_CONST, a] = segs[0, LOAD_CONST, a]
-                if ctx[CX_DAMPED]:
-                    seg[DAMP, a] = ctx[CX_SIGMA][stuck, a]
             sc[COS_TAU0] = math.cos(tau)
             sc[SIN_TAU0] = math.sin(tau)
-            if ctx[CX_DAMPED]:
+            D = ctx[CX_COMPLIANCE]
+            if D.shape[0] > k:  # damped: the structure's own modes and rates
+                for a in range(m):
+                    seg[DAMP, a] = viscous.sigma(D, n, k, stuck, a)
                 sc[DAMPED] = 1.0
             evaluate(seg, sc, t, eta, etad)
-            if check and ctx[CX_DAMPED]:
-                gst[GS_VISCOUS] += viscous_work(seg, sc, t, ctx[CX_CDIAG][stuck], ctx[CX_R])
+            if check and D.shape[0] > k:
+                cd = viscous.cdiag_row(D, n, k, stuck)
+                gst[GS_VISCOUS] += viscous.viscous_work(seg, sc, t, cd, D[k])
                 evaluate(seg, sc, t, eta, etad)
         if check and first >= 0:
             _sample_phase(segs, scs, stuck, t, cst, active, eta0, etad0)
-            if ctx[CX_DAMPED]:
-                gst[GS_VISCOUS] += viscous_work(
-                    segs[first], scs[first], t, ctx[CX_CDIAG][stuck], ctx[CX_R]
-                )
+            D = ctx[CX_COMPLIANCE]
+            if D.shape[0] > k:
+                cd = viscous.cdiag_row(D, n, k, stuck)
+                gst[GS_VISCOUS] += viscous.viscous_work(segs[first], scs[first], t, cd, D[k])
             evaluate(segs[first], scs[first], t, eta, etad)
         _state(ctx, stuck, d, eta, etad, x, xd)
         for c in range(k):
@@ -441,7 +404,11 @@ def run_cycle(x, xd, stuck, signs, cst, gst, ctx, tau_start, tau_end, max_work, 
         for c in range(k):
             if (cand >> c) & 1:
                 signs[c] = 0.0
-        new_stuck, _ = decide(x, xd, tau + t, cand, signs, ctx, new_signs)
+        if ctx[CX_COMPLIANCE].shape[0] > k:  # damped: the viscous force in the decision
+            xe = viscous.effective(ctx[CX_COMPLIANCE], k, x, xd)
+            new_stuck, _ = decide(xe, tau + t, cand, signs, ctx, new_signs)
+        else:
+            new_stuck, _ = decide(x, tau + t, cand, signs, ctx, new_signs)
         tau += t
         for c in range(k):
             if not (active >> c) & 1:

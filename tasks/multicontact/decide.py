@@ -11,8 +11,10 @@ assignment is *admissible* when
 * every sliding candidate accelerates in its slip direction, ``s_c b_c . x'' > 0``,
   with ``r^2 G x'' = f - B_S g_S``,
 
-``f = p cos tau - K x - r C x' - sum_(c sliding) beta_c s_c b_c`` (the viscous
-term only in a damped scene, docs/contacts.md 7). The contact
+``f = p cos tau - K x - sum_(c sliding) beta_c s_c b_c``. A damped scene
+(docs/contacts.md 7) has ``- r C x'`` in f too: its callers pass
+``x + K^-1 r C x'`` for x (:func:`tasks.multicontact.viscous.effective`), so this
+module is the undamped one, unchanged. The contact
 accelerations ``a = A (f_free + F)`` with ``A = B^T G^-1 B / r^2`` positive
 definite and ``F`` in the Coulomb graph make a strictly monotone inclusion, so
 the admissible assignment is unique except on its boundary (``|g_c| = beta_c``
@@ -31,20 +33,11 @@ import math
 import numpy as np
 from numba import njit
 
-from tasks.multicontact.layout import (
-    CX_B,
-    CX_BETAS,
-    CX_DAMPED,
-    CX_GINV,
-    CX_H,
-    CX_K,
-    CX_P,
-    CX_RC,
-)
+from tasks.multicontact.layout import CX_B, CX_BETAS, CX_GINV, CX_H, CX_K, CX_P
 
 
 @njit(cache=True)
-def _violation(x, xd, tau, stuck, slide_sign, ctx, fbuf, abuf):
+def _violation(x, tau, stuck, slide_sign, ctx, fbuf, abuf):
     """Largest violation (force units) of the assignment ``stuck`` (bit mask) with
     slip signs ``slide_sign`` (0 for stuck contacts): <= 0 when admissible."""
     p = ctx[CX_P]
@@ -55,15 +48,10 @@ def _violation(x, xd, tau, stuck, slide_sign, ctx, fbuf, abuf):
     n = x.shape[0]
     k = B.shape[1]
     ctau = math.cos(tau)
-    damped = ctx[CX_DAMPED]
-    rC = ctx[CX_RC]
     for i in range(n):
         acc = p[i] * ctau
         for j in range(n):
             acc -= K[i, j] * x[j]
-        if damped:
-            for j in range(n):
-                acc -= rC[i, j] * xd[j]
         for c in range(k):
             if slide_sign[c] != 0.0:
                 acc -= betas[c] * slide_sign[c] * B[i, c]
@@ -105,10 +93,9 @@ def _slide_violation(c, sign, ctx, abuf):
 
 
 @njit(cache=True)
-def decide(x, xd, tau, candidates, signs, ctx, new_signs):
+def decide(x, tau, candidates, signs, ctx, new_signs):
     """The stuck set after an event (bit mask); writes the slip signs into ``new_signs``.
 
-    ``(x, xd)`` is the state at the event (``xd`` enters through the viscous force).
     ``candidates`` is the bit mask of contacts with zero velocity, ``signs`` the
     slip signs of the others (0 for candidates and inactive contacts). Returns
     ``(stuck, violation)``; ``violation <= 0`` when the choice is admissible.
@@ -147,7 +134,7 @@ def decide(x, xd, tau, candidates, signs, ctx, new_signs):
             else:
                 trial[c] = 1.0 if digit == 1 else -1.0
                 n_sliding += 1
-        worst = _violation(x, xd, tau, stuck, trial, ctx, fbuf, abuf)
+        worst = _violation(x, tau, stuck, trial, ctx, fbuf, abuf)
         for i in range(nc):
             c = cand[i]
             if trial[c] != 0.0:

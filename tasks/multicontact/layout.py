@@ -27,16 +27,11 @@ from __future__ import annotations
     CX_STICK_MIN,
     CX_MAX_EVENTS,
     CX_COMPLIANCE,
-    CX_RC,
-    CX_SIGMA,
-    CX_RHCX,
-    CX_CDIAG,
-    CX_DAMPED,
-    CX_R,
-) = range(29)
-# Damping (docs/contacts.md 7): ``r C``, the modal decay rates ``sigma[S, a]``, the
-# viscous part of the stuck forces ``r (H_S C X_S)_c``, ``X_S^T C X_S`` (diagonal), a
-# flag (False: the undamped code path, untouched) and r.
+) = range(23)
+# CX_COMPLIANCE holds b_c^T K^-1 b_c of each contact (k entries) and, in a damped
+# scene only, the flat damping data after them (tasks.multicontact.viscous, docs/contacts.md
+# 7): longer than k means damped. So an undamped scene's context is what it was, entry
+# for entry (every array of the context costs reference counting on each call).
 
 # Columns of the per-contact statistics of a run (shape (k, N_CST)).
 (

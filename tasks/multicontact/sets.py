@@ -101,6 +101,7 @@ class StuckSets:
             c(self.C),
             c(self.cdiag),
             c(self.HCX),
+            c(np.linalg.solve(self.K, self.C)),
             self.damped,
         )
 

@@ -20,6 +20,7 @@ from numba import njit, prange
 
 from tasks.kernel.damping import particular
 from tasks.kernel.layout import TWO_PI
+from tasks.multicontact import viscous
 from tasks.multicontact.cycle import run_cycle
 from tasks.multicontact.decide import decide
 from tasks.multicontact.layout import (
@@ -36,7 +37,6 @@ from tasks.multicontact.layout import (
     CX_B,
     CX_BETAS,
     CX_COMPLIANCE,
-    CX_DAMPED,
     CX_G,
     CX_H,
     CX_HP,
@@ -45,8 +45,6 @@ from tasks.multicontact.layout import (
     CX_OMEGA,
     CX_P,
     CX_R2,
-    CX_RC,
-    CX_SIGMA,
     CX_SIZE,
     CX_STICK_MIN,
     CX_X,
@@ -104,7 +102,7 @@ POLISH_STEPS = 4
 def point_context(r, beta, args, settings):
     """The per-point context tuple (entries ``CX_*`` of :mod:`tasks.multicontact.layout`)."""
     (G, Ginv, K, p0, scales, B, ratio, compliance, size, lam, X, XtG, W, H, HKX, BX) = args[:16]
-    C, cdiag, HCX, damped = args[16], args[17], args[18], args[19]
+    C, cdiag, HCX, KinvC, damped = args[16], args[17], args[18], args[19], args[20]
     event_tol = settings[0]
     step_fraction = settings[1]
     max_events = settings[7]
@@ -136,14 +134,8 @@ def point_context(r, beta, args, settings):
                 acc += H[S, c, i] * p[i]
             hp[S, c] = acc
     events = max(float(max_events), min(8.0 * om_max, 1e9))
-    if damped:
-        sigma = cdiag / (2.0 * r)
-        rC = r * C
-        rHCX = r * HCX
-    else:  # the undamped path never reads these
-        sigma = np.zeros((1, 1))
-        rC = np.zeros((1, 1))
-        rHCX = np.zeros((1, 1, 1))
+    if damped:  # the damping data after the compliances (tasks.multicontact.viscous)
+        compliance = viscous.pack(compliance, r, C, cdiag, HCX, KinvC)
     return (
         G,
         Ginv,
@@ -168,12 +160,6 @@ def point_context(r, beta, args, settings):
         1e3 * event_tol,
         events,
         compliance,
-        rC,
-        sigma,
-        rHCX,
-        cdiag,
-        damped,
-        r,
     )
 
 
@@ -187,7 +173,9 @@ def held_response(ctx, stuck):
     n = ctx[CX_P].shape[0]
     m = ctx[CX_SIZE][stuck]
     Xs = ctx[CX_X][stuck]
-    damped = ctx[CX_DAMPED]
+    k = ctx[CX_B].shape[1]
+    D = ctx[CX_COMPLIANCE]
+    damped = D.shape[0] > k
     out = np.zeros(2 * n)
     for a in range(m):
         load = ctx[CX_LOAD_COS][stuck, a]
@@ -195,7 +183,7 @@ def held_response(ctx, stuck):
             continue
         om2 = ctx[CX_OMEGA][stuck, a] ** 2
         den = om2 - 1.0
-        sigma = ctx[CX_SIGMA][stuck, a] if damped else 0.0
+        sigma = viscous.sigma(D, n, k, stuck, a) if damped else 0.0
         if sigma == 0.0 and abs(den) < 1e-9 * max(om2, 1.0):
             return out, False
         if damped:
@@ -233,19 +221,18 @@ def held_margins(ctx, margins):
                 kx += K[i, j] * X[j]
             g -= H[c, i] * kx
         amp = abs(g)
-        if ctx[CX_DAMPED]:  # g = gc cos + gs sin: gc - H rC x_s, gs = -H K x_s + H rC x_c
-            rC = ctx[CX_RC]
+        if ctx[CX_COMPLIANCE].shape[0] > k:  # damped: g = gc cos tau + gs sin tau
             gs = 0.0
+            cx_s = np.empty(n)
+            cx_c = np.empty(n)
+            viscous.force(ctx[CX_COMPLIANCE], k, X[n:], cx_s)  # gc -= H r C x_s
+            viscous.force(ctx[CX_COMPLIANCE], k, X[:n], cx_c)  # gs = H (r C x_c - K x_s)
             for i in range(n):
                 kxs = 0.0
-                cxs = 0.0
-                cxc = 0.0
                 for j in range(n):
                     kxs += K[i, j] * X[n + j]
-                    cxs += rC[i, j] * X[n + j]
-                    cxc += rC[i, j] * X[j]
-                g -= H[c, i] * cxs
-                gs += H[c, i] * (cxc - kxs)
+                g -= H[c, i] * cx_s[i]
+                gs += H[c, i] * (cx_c[i] - kxs)
             amp = math.hypot(g, gs)
         margins[c] = ctx[CX_BETAS][c] - amp
         if (active >> c) & 1 and margins[c] <= HELD_MARGIN_RTOL * ctx[CX_BETAS][c]:
@@ -576,7 +563,10 @@ def start_state(ctx, ic, r, beta, seed):
             if (candidates >> c) & 1 and v != 0.0:
                 signs[c] = 1.0 if v > 0.0 else -1.0
                 candidates &= ~(1 << c)
-    stuck, _ = decide(X[:n], X[n:], 0.0, candidates, signs, ctx, new_signs)
+    x = X[:n]
+    if ctx[CX_COMPLIANCE].shape[0] > k:  # damped: the viscous force in the decision
+        x = viscous.effective(ctx[CX_COMPLIANCE], k, X[:n], X[n:])
+    stuck, _ = decide(x, 0.0, candidates, signs, ctx, new_signs)
     return X, stuck, new_signs, used
 
 
