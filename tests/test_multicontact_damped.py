@@ -13,6 +13,9 @@
   points: same regimes, slip amplitudes to 1e-6;
 * (e) a contact that never slides (beta_ratio 1e5) is the damped structure held
   there, written out by hand, classified by the single-contact kernel;
+* modal ratios and a general C, which couple the stuck sets' modes (their damped
+  pairs): one contact is the kernel's pairs path, and (c) and (d) hold;
+* one steady state from every start (damping makes it unique);
 * the damping a scene of several contacts refuses, one line naming ``damping``.
 """
 
