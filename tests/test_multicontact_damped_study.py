@@ -105,7 +105,7 @@ def test_the_damping_key_of_several_contacts_round_trips():
 
 
 BAD = {
-    "modal": ("damping = {modal = 0.02}", "scene[0].damping: with several contacts C must be"),
+    "modal": ("damping = {modal = -0.02}", "scene[0].damping.modal"),
     "negative": ("damping = {rayleigh = [-0.1, 0.0]}", "scene[0].damping.rayleigh"),
     "kind": ("damping = {viscous = 0.1}", "scene[0].damping"),
 }

@@ -29,6 +29,7 @@ from tasks.kernel.layout import (
     DELTA,
     ETA0,
     ETAD0,
+    ETAD_OFF,
     EVALS,
     KIND,
     KIND_SLIP,
@@ -193,7 +194,20 @@ def start_phase(x, xd, tau, stuck, signs, zeroed, ctx, segs, scs, d, eta0, etad0
     D = ctx[CX_COMPLIANCE]
     if D.shape[0] > k:  # damped (docs/contacts.md 7)
         viscous.damp_phase(D, n, k, stuck, active, m, etad0, segs, scs)
+        if viscous.is_general(D, n, k, stuck):  # C couples the set's modes: pairs
+            viscous.general_phase(ctx, stuck, zeroed, x, xd, d, fconst, segs, scs, eta0, etad0)
     return m
+
+
+@njit(cache=True)
+def _viscous(ctx, stuck, seg, sc, t, off):
+    """The viscous work of a damped phase of length ``t`` (docs/contacts.md 7): modal
+    (``X_S^T C X_S`` diagonal) or on the damped pairs."""
+    D = ctx[CX_COMPLIANCE]
+    n, k = ctx[CX_B].shape
+    if viscous.is_general(D, n, k, stuck):
+        return viscous.general_work(ctx, stuck, seg, sc, t, off)
+    return viscous.viscous_work(seg, sc, t, viscous.cdiag_row(D, n, k, stuck), D[k])
 
 
 @njit(cache=True)
@@ -369,17 +383,19 @@ def run_cycle(x, xd, stuck, signs, cst, gst, ctx, tau_start, tau_end, max_work, 
                 sc[DAMPED] = 1.0
             evaluate(seg, sc, t, eta, etad)
             if check and D.shape[0] > k:
-                cd = viscous.cdiag_row(D, n, k, stuck)
-                gst[GS_VISCOUS] += viscous.viscous_work(seg, sc, t, cd, D[k])
+                gst[GS_VISCOUS] += _viscous(ctx, stuck, seg, sc, t, segs[0, ETAD_OFF])
                 evaluate(seg, sc, t, eta, etad)
         if check and first >= 0:
             _sample_phase(segs, scs, stuck, t, cst, active, eta0, etad0)
-            D = ctx[CX_COMPLIANCE]
-            if D.shape[0] > k:
-                cd = viscous.cdiag_row(D, n, k, stuck)
-                gst[GS_VISCOUS] += viscous.viscous_work(segs[first], scs[first], t, cd, D[k])
+            if ctx[CX_COMPLIANCE].shape[0] > k:
+                off = segs[0, ETAD_OFF]
+                gst[GS_VISCOUS] += _viscous(ctx, stuck, segs[first], scs[first], t, off)
             evaluate(segs[first], scs[first], t, eta, etad)
-        _state(ctx, stuck, d, eta, etad, x, xd)
+        D = ctx[CX_COMPLIANCE]
+        if D.shape[0] > k and viscous.is_general(D, n, k, stuck):
+            viscous.general_state(ctx, stuck, d, eta, etad, segs[0, ETAD_OFF], x, xd)
+        else:
+            _state(ctx, stuck, d, eta, etad, x, xd)
         for c in range(k):
             dc = _col_dot(B, c, x)
             if (stuck >> c) & 1:

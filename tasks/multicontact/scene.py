@@ -12,8 +12,9 @@ special case (:meth:`MultiScene.chain`). Every contact is ``("ground", j)``
 (``b = e_j``) or ``("between", i, j)`` (``b = e_j - e_i``), DOF indices from 0.
 The contact directions must be linearly independent (a set of stuck contacts
 then fixes its forces uniquely, docs/contacts.md 2). Damping ``r C x'`` as for one
-contact (docs/structures.md 1): a C proportional in every stuck set (Rayleigh
-``C = a M + b K`` always), docs/contacts.md 7.
+contact (docs/structures.md 1): modal in every stuck set where C is proportional
+there (Rayleigh ``C = a M + b K`` always), the set's damped pairs elsewhere
+(docs/contacts.md 7).
 """
 
 from __future__ import annotations
@@ -104,8 +105,7 @@ class MultiScene:
             without friction.
         damping : optional
             As :meth:`tasks.scene.Scene.from_matrices`: a matrix C, ``("rayleigh", a, b)``
-            or ``("modal", zeta)``; it must be diagonal in the modes of every stuck
-            set (Rayleigh always is; docs/contacts.md 7). Zero damping is none.
+            or ``("modal", zeta)`` (docs/contacts.md 7). Zero damping is none.
 
         Raises
         ------

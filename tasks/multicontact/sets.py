@@ -21,12 +21,17 @@ The forces the stuck contacts must carry are
 (the friction forces are ``-g_S``) and the set stays stuck while ``|g_c| <= beta_c``.
 Everything here is independent of r and beta (``M = r^2 G``: ``Omega = sqrt(lam) / r``).
 
-**Damping** ``r C x'`` (docs/contacts.md 7): ``X_S^T C X_S`` must be diagonal
-(to :data:`PROPORTIONAL_RTOL`) in every set, as Rayleigh ``C = a G + b K`` is
-(``T^T C T = a G_S + b K_S``): each mode then gets ``eta'' + 2 sigma eta' + ...``
-with ``sigma = cdiag / (2 r)`` (docs/structures.md 4.1), and the stuck forces
-their viscous part, ``g_S = H_S (... - r C x')`` with ``x' = X_S eta'``
-(``HCX[S, c, :m] = (H_S C X_S)_c``).
+**Damping** ``r C x'`` (docs/contacts.md 7): where ``X_S^T C X_S`` is diagonal
+(to :data:`PROPORTIONAL_RTOL`), as Rayleigh ``C = a G + b K`` always is
+(``T^T C T = a G_S + b K_S``), each mode gets ``eta'' + 2 sigma eta' + ...`` with
+``sigma = cdiag / (2 r)`` (docs/structures.md 4.1), and the stuck forces their
+viscous part, ``g_S = H_S (... - r C x')`` with ``x' = X_S eta'``
+(``HCX[S, c, :m] = (H_S C X_S)_c``). Elsewhere (``general[S] = 1``) the set runs
+on its damped pairs (docs/structures.md 4.5, :func:`tasks.damped_pairs.damped_pairs`
+of ``(T^T G T, T^T C T, T^T K T)`` and ``T^T p``): ``lam``, ``cdiag`` hold the
+pairs' ``nu_1 nu_2`` and ``-(nu_1 + nu_2)``, ``X = T load_nu^T`` (so the per-point
+loads come out as for modes), and ``Tset``, ``Lset``, ``Vset``, ``Wo = T load_w^T``
+the maps of :mod:`tasks.multicontact.viscous`.
 Arrays are padded to n modes and k contacts so that the compiled simulator
 indexes them by the set's bit mask.
 """
@@ -73,6 +78,11 @@ class StuckSets:
     C: np.ndarray
     cdiag: np.ndarray
     HCX: np.ndarray
+    general: np.ndarray
+    Tset: np.ndarray
+    Lset: np.ndarray
+    Vset: np.ndarray
+    Wo: np.ndarray
 
     @property
     def damped(self) -> bool:
@@ -102,6 +112,11 @@ class StuckSets:
             c(self.cdiag),
             c(self.HCX),
             c(np.linalg.solve(self.K, self.C)),
+            c(self.general),
+            c(self.Tset),
+            c(self.Lset),
+            c(self.Vset),
+            c(self.Wo),
             self.damped,
         )
 
@@ -117,7 +132,8 @@ def stuck_sets(scene: MultiScene) -> StuckSets:
     Raises
     ------
     ValueError
-        One ``damping:`` line when C is not diagonal in the modes of some stuck set.
+        One ``damping:`` line when a stuck set's damped pairs are refused
+        (docs/structures.md 4.5: repeated or defective eigenvalues).
     """
     G = scene.mass_matrix(1.0)
     K = scene.stiffness_matrix()
@@ -137,6 +153,12 @@ def stuck_sets(scene: MultiScene) -> StuckSets:
     C = scene.damping_matrix(1.0)
     cdiag = np.zeros((n_sets, n))
     HCX = np.zeros((n_sets, k, n))
+    general = np.zeros(n_sets)
+    Tset = np.zeros((n_sets, n, n))
+    Lset = np.zeros((n_sets, 2 * n, 2 * n))
+    Vset = np.zeros((n_sets, 2 * n, 2 * n))
+    Wo = np.zeros((n_sets, n, n))
+    p0 = scene.load_vector(1.0)
     for S in range(n_sets):
         stuck = [c for c in range(k) if S >> c & 1]
         Bs = B[:, stuck]
@@ -153,7 +175,20 @@ def stuck_sets(scene: MultiScene) -> StuckSets:
             XtG[S, :m, :] = Xs.T @ G
             BX[S, :, :m] = B.T @ Xs
             if scene.damped:
-                cdiag[S, :m] = _modal_damping(Xs.T @ C @ Xs, [scene.contacts[c] for c in stuck])
+                held = [scene.contacts[c] for c in stuck]
+                diag = _modal_damping(Xs.T @ C @ Xs)
+                if diag is not None:
+                    cdiag[S, :m] = diag
+                else:  # the damped pairs of the set (docs/structures.md 4.5)
+                    pairs = _pairs(Gs, T.T @ C @ T, Ks, T.T @ p0, held)
+                    general[S] = 1.0
+                    lam[S, :m] = pairs.lam
+                    cdiag[S, :m] = pairs.damp
+                    X[S, :, :m] = T @ pairs.load_nu.T
+                    Tset[S, :, :m] = T
+                    Lset[S, : 2 * m, : 2 * m] = pairs.L
+                    Vset[S, : 2 * m, : 2 * m] = pairs.V
+                    Wo[S, :, :m] = T @ pairs.load_w.T
         if stuck:
             Ws = Bs @ np.linalg.inv(Bs.T @ Bs)
             Hs = np.linalg.solve(Bs.T @ Ginv @ Bs, Bs.T @ Ginv)
@@ -186,20 +221,30 @@ def stuck_sets(scene: MultiScene) -> StuckSets:
         C=C,
         cdiag=cdiag,
         HCX=HCX,
+        general=general,
+        Tset=Tset,
+        Lset=Lset,
+        Vset=Vset,
+        Wo=Wo,
     )
 
 
-def _modal_damping(Cs: np.ndarray, held: list) -> np.ndarray:
-    """The diagonal of ``Cs = X_S^T C X_S``, or a ValueError naming ``damping`` when it
-    is not diagonal (the general damping of docs/structures.md 4.5 per set is not
-    implemented with several contacts)."""
+def _modal_damping(Cs: np.ndarray) -> np.ndarray | None:
+    """The diagonal of ``Cs = X_S^T C X_S``, or None when it is not diagonal."""
     diag = np.diag(Cs).copy()
     off = np.abs(Cs - np.diag(diag)).max(initial=0.0)
     if off > PROPORTIONAL_RTOL * max(np.abs(Cs).max(), 1e-300):
-        where = f"with {held} held" if held else "without contacts held"
-        raise ValueError(
-            "damping: with several contacts C must be proportional in every stuck set "
-            f"(e.g. ('rayleigh', a, b)); it couples the modes of the structure {where} "
-            "(docs/contacts.md 7)"
-        )
+        return None
     return np.maximum(diag, 0.0)
+
+
+def _pairs(Gs, Cs, Ks, ps, held: list):
+    """:func:`tasks.damped_pairs.damped_pairs` of one stuck set, or its ValueError with
+    the set named (one ``damping:`` line)."""
+    from tasks.damped_pairs import damped_pairs
+
+    try:
+        return damped_pairs(0.5 * (Gs + Gs.T), 0.5 * (Cs + Cs.T), 0.5 * (Ks + Ks.T), ps)
+    except ValueError as exc:
+        where = f"with {held} held" if held else "without contacts held"
+        raise ValueError(f"{str(exc).rstrip('.')} (the structure {where})") from None

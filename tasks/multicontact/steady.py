@@ -102,7 +102,8 @@ POLISH_STEPS = 4
 def point_context(r, beta, args, settings):
     """The per-point context tuple (entries ``CX_*`` of :mod:`tasks.multicontact.layout`)."""
     (G, Ginv, K, p0, scales, B, ratio, compliance, size, lam, X, XtG, W, H, HKX, BX) = args[:16]
-    C, cdiag, HCX, KinvC, damped = args[16], args[17], args[18], args[19], args[20]
+    C, cdiag, HCX, KinvC = args[16], args[17], args[18], args[19]
+    general, Tset, Lset, Vset, Wo, damped = args[20:26]
     event_tol = settings[0]
     step_fraction = settings[1]
     max_events = settings[7]
@@ -135,7 +136,9 @@ def point_context(r, beta, args, settings):
             hp[S, c] = acc
     events = max(float(max_events), min(8.0 * om_max, 1e9))
     if damped:  # the damping data after the compliances (tasks.multicontact.viscous)
-        compliance = viscous.pack(compliance, r, C, cdiag, HCX, KinvC)
+        compliance = viscous.pack(
+            compliance, r, C, cdiag, HCX, KinvC, general, Tset, Lset, Vset, Wo
+        )
     return (
         G,
         Ginv,
@@ -177,6 +180,8 @@ def held_response(ctx, stuck):
     D = ctx[CX_COMPLIANCE]
     damped = D.shape[0] > k
     out = np.zeros(2 * n)
+    if damped and viscous.is_general(D, n, k, stuck):  # damped pairs
+        return out, viscous.general_held(ctx, stuck, out)
     for a in range(m):
         load = ctx[CX_LOAD_COS][stuck, a]
         if load == 0.0:
