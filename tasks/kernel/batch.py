@@ -29,18 +29,6 @@ SECANT_TRIES = 2
 # grid, whose chain of neighbours one step apart rarely needs them: there they
 # cost more periods than they save, benchmarks/bench_refine_seeded.py).
 ALT_TRIES = 5
-# Continuation along beta (:func:`_continuation`) of an adaptive map's point whose
-# warm starts all failed, from the nearest point of the call at its r, where that
-# point cost at least CONTINUATION_WORTH periods (its r lies next to a resonance:
-# the held start is slow there, the orbit moves fast along r and slowly along
-# beta); its shortest step (a fraction of the segment) and the periods it may
-# spend before the held start. Measured on the tiles of four maps
-# (benchmarks/bench_refine_seeded.py --tiles): tried on every failed point (from
-# the nearest candidate, or from the nearest at the same r), or gated at 30
-# periods, its failures cost about as many periods as it saved (docs/benchmarks.md).
-CONTINUATION_STEP = 1.0 / 8.0
-CONTINUATION_PERIODS = 16
-CONTINUATION_WORTH = 200
 
 
 @njit(cache=True)
@@ -66,8 +54,7 @@ def _warm_tries(
     ``-2 - k``: given row ``k``), up to ``SECANT_TRIES``
     secant predictions, then the copied orbits of up to ``alt_tries`` other
     candidates (nearest first: where the point lies across a change of regime or
-    stops from its nearest neighbour, one on its own side), then, with
-    ``alt_tries``, the continuation of :func:`_continuation`. A warm start that is
+    stops from its nearest neighbour, one on its own side). A warm start that is
     not tried (``warm_point`` returns no periods: the held start decides such
     points) ends the tries.
     """
@@ -132,69 +119,6 @@ def _warm_tries(
         spent += used
         if accepted:
             return True, spent
-    # a slow point next to a resonance: continuation along beta from its r's solved point
-    q = _same_r(r, i, seeds, seedable) if alt_tries > 0 else -1
-    if q < 0 or out[q, OUT_CYCLES] < CONTINUATION_WORTH:
-        return False, spent
-    accepted, used = _continuation(
-        r[i], beta[i], beta[q], final[q], scene, settings, out[i], final[i], keep, kept
-    )
-    return accepted, spent + used
-
-
-@njit(cache=True)
-def _same_r(r, i, seeds, seedable):
-    """The nearest candidate of point ``i`` solved earlier in the call at its r (another
-    beta) that can seed, or -1."""
-    for c in range(seeds.shape[1]):
-        q = seeds[i, c]
-        if 0 <= q < i and seedable[q] and r[q] == r[i]:
-            return q
-    return -1
-
-
-@njit(cache=True)
-def _continuation(r, beta, beta_q, seed, scene, settings, out, final, keep, kept):
-    """Point ``(r, beta)`` reached from the solved orbit ``seed`` of ``(r, beta_q)`` along
-    the segment between them (natural continuation in beta): warm starts
-    (:func:`tasks.kernel.point.warm_point`) at points of the segment, each seeded by
-    the orbit of the one before, the step halved where one fails (from half the
-    segment: the whole was tried) and doubled after a success, until the point
-    itself is accepted, a step falls below ``CONTINUATION_STEP`` of the segment,
-    or ``CONTINUATION_PERIODS`` periods are spent.
-
-    Next to a resonance the orbit moves fast along r (a seed one grid step away
-    along r fails) but slowly along beta, and the held start needs hundreds to
-    thousands of periods (e.g. the 6DOF ground contact on m5 at r = 0.709, the
-    square root of its second eigenvalue: 2,011 periods from the held start, 2
-    from the point 8 grid steps below it along beta, 6 by continuation from the
-    point 16 steps below). The intermediate orbits only seed: the point's own is
-    accepted by the same tests as any warm start, so the labels are the held
-    start's (docs/theory.md 3). Returns ``(accepted, periods spent)``; ``out``
-    and ``final`` as :func:`tasks.kernel.point.warm_point`."""
-    tmp_out = np.empty(out.shape[0])
-    tmp_final = np.empty(final.shape[0])
-    X = seed.copy()
-    s, h, spent = 0.0, 0.5, 0
-    while spent < CONTINUATION_PERIODS and h >= CONTINUATION_STEP:
-        t = min(1.0, s + h)
-        if t >= 1.0:
-            accepted, used = warm_point(r, beta, scene, settings, out, final, X, keep, kept)
-            spent += used
-            if accepted or used == 0:
-                return accepted, spent
-        else:
-            bt = beta_q + t * (beta - beta_q)
-            accepted, used = warm_point(r, bt, scene, settings, tmp_out, tmp_final, X, keep, kept)
-            spent += used
-            if used == 0:
-                return False, spent
-            if accepted:
-                X[:] = tmp_final
-                s = t
-                h *= 2.0
-                continue
-        h *= 0.5
     return False, spent
 
 
@@ -265,10 +189,7 @@ def run_points_given(r, beta, scene, settings, samples, seeds, given, alt_tries)
     resonance of the held system, where the copied orbit is too far for
     Newton's method and the held start needs hundreds of periods), then the
     copied orbits of up to ``alt_tries`` other candidates (:func:`_warm_tries`;
-    :data:`ALT_TRIES` for an adaptive map's point lists, 0 elsewhere), and for
-    such a point next to a resonance (the nearest earlier point of the call at
-    its r cost ``CONTINUATION_WORTH`` periods or more) a continuation along beta
-    from that point (:func:`_continuation`).
+    :data:`ALT_TRIES` for an adaptive map's point lists, 0 elsewhere).
     A point the warm start does not settle, or whose orbit then fails the orbit
     invariant, is classified from the held start (:func:`simulate_point`)
     exactly as without warm starts, and its period-1 motion is then polished
