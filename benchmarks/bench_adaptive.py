@@ -321,12 +321,25 @@ def _best(runs: list[tuple[float, dict, str]]) -> tuple[float, dict, str]:
     return fastest[0], arrays, fastest[2]
 
 
+def _local_cluster(workers: int):
+    """The benchmark's cluster: ``workers`` single-threaded worker processes, loopback."""
+    from distributed import LocalCluster
+
+    return LocalCluster(
+        n_workers=workers,
+        threads_per_worker=1,
+        processes=True,
+        host="127.0.0.1",
+        dashboard_address=None,
+    )
+
+
 def cluster_main(args, n_r: int, n_beta: int) -> int:
     """Adaptive and dense studies of each scene on one LocalCluster, same run."""
     import re
     import tempfile
 
-    from distributed import Client, LocalCluster
+    from distributed import Client
 
     from tasks import Scene
 
@@ -338,13 +351,7 @@ def cluster_main(args, n_r: int, n_beta: int) -> int:
         return STUDY.format(fidelity=args.fidelity, mode=mode, n_r=size[0], n_beta=size[1], **sc)
 
     with (
-        LocalCluster(
-            n_workers=args.workers,
-            threads_per_worker=1,
-            processes=True,
-            host="127.0.0.1",
-            dashboard_address=None,
-        ) as cluster,
+        _local_cluster(args.workers) as cluster,
         Client(cluster) as client,
         tempfile.TemporaryDirectory() as tmp,
     ):
@@ -442,8 +449,6 @@ def timeline_main(args, n_r: int, n_beta: int) -> int:
     follows it, the client's CPU, and the client's steps of the fastest run."""
     import tempfile
 
-    from distributed import LocalCluster
-
     from tasks import Scene
 
     scenes = cluster_scenes(args.scenes)
@@ -451,13 +456,7 @@ def timeline_main(args, n_r: int, n_beta: int) -> int:
     best_runs: dict[tuple[str, str], dict] = {}
     mode = ADAPTIVE_MODE.format(step=args.coarse_step)
     with (
-        LocalCluster(
-            n_workers=args.workers,
-            threads_per_worker=1,
-            processes=True,
-            host="127.0.0.1",
-            dashboard_address=None,
-        ) as cluster,
+        _local_cluster(args.workers) as cluster,
         tempfile.TemporaryDirectory() as tmp,
     ):
         folder = Path(tmp)

@@ -332,16 +332,24 @@ def general_held(ctx, stuck, out):
 
 
 @njit(cache=True)
+def _subintervals(seg, t):
+    """Sub-intervals of the 4-point Gauss-Legendre rule over a phase of length ``t``:
+    short against its fastest rate (``Omega_a + 2 sigma_a`` and the excitation), at
+    most :data:`VISCOUS_MAX_INTERVALS` (:func:`viscous_work`, :func:`general_work`)."""
+    rate = 1.0
+    for a in range(seg.shape[1]):
+        rate = max(rate, seg[OMEGA, a] + 2.0 * seg[DAMP, a])
+    return min(max(1, int(math.ceil(2.0 * rate * t))), VISCOUS_MAX_INTERVALS)
+
+
+@njit(cache=True)
 def general_work(ctx, stuck, seg, sc, t, off):
     """``int_0^t x'^T r C x' dtau`` over a phase on pairs (the quadrature of
     :func:`viscous_work`, the full quadratic form of x')."""
     D = ctx[CX_COMPLIANCE]
     n, k = ctx[CX_B].shape
     m = seg.shape[1]
-    rate = 1.0
-    for a in range(m):
-        rate = max(rate, seg[OMEGA, a] + 2.0 * seg[DAMP, a])
-    n_sub = min(max(1, int(math.ceil(2.0 * rate * t))), VISCOUS_MAX_INTERVALS)
+    n_sub = _subintervals(seg, t)
     h = t / n_sub
     eta = np.empty(m)
     etad = np.empty(m)
@@ -369,10 +377,7 @@ def viscous_work(seg, sc, t, cdiag, r):
     on sub-intervals short against the fastest rate of the phase (``Omega_a + 2 sigma_a``
     and the excitation), where the rule's error is below 1e-12 of the integral."""
     m = seg.shape[1]
-    rate = 1.0
-    for a in range(m):
-        rate = max(rate, seg[OMEGA, a] + 2.0 * seg[DAMP, a])
-    n_sub = min(max(1, int(math.ceil(2.0 * rate * t))), VISCOUS_MAX_INTERVALS)
+    n_sub = _subintervals(seg, t)
     h = t / n_sub
     eta = np.empty(m)
     etad = np.empty(m)
