@@ -98,6 +98,17 @@ def runs(tmp_path_factory) -> Path:
     return where
 
 
+def assert_same_run(name: str, var: str, a: np.ndarray, b: np.ndarray) -> None:
+    """``var`` of scene ``name`` equal in two runs of one study. In an adaptive map
+    the orbits that seed a point list depend on the order in which lists arrive
+    (docs/adaptive.md, warm starts): labels and counts are equal, the polished fields
+    agree to about 1e-9, and ``cycles`` (the periods the seeds cost) may differ."""
+    if name != "adaptive" or a.dtype.kind in "biu" and var != "cycles":
+        np.testing.assert_array_equal(a, b, err_msg=f"{name} {var}")
+    elif var != "cycles":
+        np.testing.assert_allclose(a, b, rtol=1e-7, atol=1e-9, err_msg=f"{name} {var}")
+
+
 def scenes(path: Path) -> dict[str, xr.Dataset]:
     with xr.open_datatree(path) as tree:
         return {str(k): v.to_dataset().load() for k, v in tree.children.items()}
@@ -116,9 +127,8 @@ def test_design_off_leaves_design_variables_out_and_labels_equal(runs):
         assert set(a.data_vars) - set(b.data_vars) == set(DESIGN_FIELDS), name
         for label in LABELS:
             assert b[label].dims == a[label].dims, (name, label)
-            np.testing.assert_array_equal(b[label].values, a[label].values, err_msg=name)
-        for var in b.data_vars:  # every other variable too (floats: NaN where none)
-            np.testing.assert_array_equal(b[var].values, a[var].values, err_msg=f"{name} {var}")
+        for var in b.data_vars:  # every variable (floats: NaN where none)
+            assert_same_run(name, var, b[var].values, a[var].values)
     assert off["grid"]["regime"].dims == ("gamma", "beta", "r")
     assert off["pts"]["regime"].dims == ("point",)
     assert bool(off["adaptive"]["simulated"].any())
@@ -215,7 +225,7 @@ def test_resume_of_a_run_with_design_off(runs, tmp_path):
     for name in WITH_DESIGN:
         assert set(resumed[name].data_vars) == set(whole[name].data_vars), name
         for label in LABELS:
-            np.testing.assert_array_equal(resumed[name][label], whole[name][label])
+            assert_same_run(name, label, resumed[name][label].values, whole[name][label].values)
 
 
 def test_design_must_be_a_bool():
