@@ -419,6 +419,8 @@ def cluster_main(args, n_r: int, n_beta: int) -> int:
             for label, (b_sec, b_arr, b_log) in earlier:
                 b_lists = sum(int(m) for m in re.findall(r"(\d+) point lists computed", b_log))
                 same = same_map(b_arr, arr)
+                waves = "adaptive_waves_per_plane"
+                same += f"; levels equal: {b_arr['attrs'].get(waves) == at.get(waves)}"
                 b_ratio = b_cpu_ratio = "-"
                 if not args.no_dense:
                     b_ratio = f"{d_sec / b_sec:.1f}"
@@ -725,6 +727,8 @@ def main(argv: list[str] | None = None) -> int:
         "also the adaptive study run by its client (study and tasks); same run",
     )
     args = ap.parse_args(argv)
+    if args.code and not (Path(args.code) / "study" / "__init__.py").is_file():
+        ap.error(f"--code: {args.code} holds no study package (its runner would import this one)")
     n_r, n_beta = (int(x) for x in args.size.lower().split("x"))
     if args.example:
         return example_main(args)

@@ -33,18 +33,21 @@ sys.path.insert(0, _CODE)
 from study.bench import machine  # noqa: E402
 from study.definition import Study  # noqa: E402
 from tasks import Scene, classify, regimes  # noqa: E402
-from tasks.model import scene_modes  # noqa: E402
 
 #: Relative slip threshold used for the counts (tasks.regimes.SLIP_RTOL; the
 #: same number in both runs, also when --code measures an older checkout).
 SLIP_RTOL = getattr(regimes, "SLIP_RTOL", 1e-7)
 
 
-def creep_threshold(scene: Scene, beta: np.ndarray) -> np.ndarray:
-    """``SLIP_RTOL * beta * c``: c = b^T K^-1 b, the compliance the contact sees."""
-    modes = scene_modes(scene)
-    K, b = modes.kernel_args()[1], modes.kernel_args()[2]
-    c = float(b @ np.linalg.solve(K, b))
+def creep_threshold(scene: Scene, r: np.ndarray, beta: np.ndarray) -> np.ndarray:
+    """``SLIP_RTOL * beta * c``: c = sum_i (b . psi_i)^2 / max(lambda_i, r^2), the
+    compliance the contact sees at the excitation frequency (tasks.regimes.SLIP_RTOL)."""
+    from scipy.linalg import eigh
+
+    b = scene.contact_vector()
+    lam, psi = eigh(scene.stiffness_matrix(), scene.mass_matrix(1.0))
+    r2 = np.asarray(r, dtype=float)[..., None] ** 2
+    c = ((b @ psi) ** 2 / np.maximum(lam, r2)).sum(axis=-1)
     return SLIP_RTOL * beta * c
 
 
@@ -85,7 +88,7 @@ def run(
                     raw[f"{name}|{start}|{field}"] = np.asarray(getattr(res, field))
             row[f"undetermined_{start}"] = int((res.regime < 0).sum())
             creep = (res.regime == regimes.STICK_SLIP) & (
-                res.slip_amplitude < creep_threshold(scene, beta)
+                res.slip_amplitude < creep_threshold(scene, r, beta)
             )
             row[f"creep_stick_slip_{start}"] = int(creep.sum())
             if hasattr(res, "start_dependent"):

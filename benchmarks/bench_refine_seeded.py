@@ -43,6 +43,9 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 # --code DIR: measure another checkout's tasks/ (e.g. main before a change)
 _CODE = sys.argv[sys.argv.index("--code") + 1] if "--code" in sys.argv else str(REPO)
+if not (Path(_CODE) / "tasks" / "__init__.py").is_file():  # else this checkout's, silently
+    print(f"bench_refine_seeded.py: error: --code: {_CODE} holds no tasks package", file=sys.stderr)
+    sys.exit(2)
 sys.path.insert(0, _CODE)
 sys.path.insert(1, str(REPO))
 sys.path.insert(2, str(REPO / "benchmarks"))

@@ -1,17 +1,8 @@
-"""``python -m study``: the same as the ``study`` command."""
+"""``python -m study``: the same as the ``study`` command (:mod:`study.launch`)."""
 
 import sys
 
-
-def _main() -> int:
-    try:  # a Ctrl-C while the command is still being imported: one line too
-        from study.cli import main
-
-        return main()
-    except KeyboardInterrupt:
-        print("study: interrupted", file=sys.stderr)
-        return 130
-
+from study.launch import main
 
 if __name__ == "__main__":
-    sys.exit(_main())
+    sys.exit(main())

@@ -60,11 +60,13 @@ from study.definition import SceneSpec, Study
 from study.plans import CHUNK_FORMAT, SECONDS, WAIT, ScenePlan
 from study.store import discard
 from study.tiles import (
+    TILE_CELLS,
     Candidates,
     Tile,
     first_tile,
     longest_first,
     sample_threshold,
+    tile_cells,
     tile_key,
     tile_layout,
     tile_rows,
@@ -153,6 +155,7 @@ class _Plane:
     hint_due: bool = False  # the closed-form hint is computed at the first result
     inferred: bool = False  # the inferred points are filled (during the verification)
     handed: bool = False  # a point list was handed out since the last result arrived
+    presampled: bool = False  # the sample's candidates drawn (Refinement.presample)
     orbits: Orbits | None = None  # solved orbits that seed new point lists (warm starts)
     tiles: list = field(default_factory=list)  # tiles to hand out (study.tiles)
     pending: dict = field(default_factory=dict)  # tile key -> rows, not in ``ref`` yet
@@ -160,7 +163,7 @@ class _Plane:
     held: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))  # in them
     tiled: int = 0  # tiles of the plane (0: point lists only)
     tiles_done: int = 0  # tiles computed by this run
-    # (idx, arrays, first row, verify) of tiles not in ``ref`` (verify: sample candidates)
+    # (idx, arrays, rows, verify, cells) of tiles not in ``ref`` (verify: sample candidates)
     tiles_arrived: list = field(default_factory=list)
     cand: Candidates | None = None  # the tiles' candidates of the verification sample
     first_row: np.ndarray | None = None  # point -> first row of the tile its fields are from
@@ -260,12 +263,13 @@ class AdaptivePlan(ScenePlan):
 
     def expected(self, n: int | None) -> Expected:
         """What a point list of ``n`` points holds; a tile's file (any length, ``n`` None)
-        with :attr:`sample_in_tiles` also which of its points are candidates of the
-        verification sample."""
+        also its cells (:func:`study.tiles.tile_cells`) and, with :attr:`sample_in_tiles`,
+        which of its points are candidates of the verification sample."""
         out = {
             k: (dt, None if n is None else self._shape(k, (n,)))
             for k, dt in self.point_fields().items()
         }
+        out |= dict.fromkeys(TILE_CELLS, ("int64", None)) if n is None else {}
         out |= {"verify": ("bool", None)} if n is None and self.sample_in_tiles else {}
         return out | SECONDS | {"index": ("int64", None if n is None else (n,))}
 
@@ -467,28 +471,28 @@ class AdaptivePlan(ScenePlan):
         whichever arrives first: they agree to the polish only (other seeds), and a
         resumed run, which gets every saved tile at once, makes the same map.
 
-        Called at each arrival, while the other tiles compute: the refinement examines
-        the tiles' cells in one call for less CPU (Fig. 4: 24 ms for its 8 tiles
-        against 45 ms tile by tile), but a call for 7 tiles when the 7th arrives ends
-        after the last tile (0.14 s on a loaded machine), whose result waits for it
-        (``benchmarks/bench_adaptive.py --timeline``)."""
+        Called at each arrival, while the other tiles compute. The refinement takes a
+        tile's cells as the tile decided them (:func:`study.tiles.tile_cells`,
+        :meth:`tasks.stream.StreamRefinement.install`), examining again only those
+        along the rows tiles share (Fig. 4 at 1000 x 500: a few ms a tile, not most of
+        the client's CPU: docs/benchmarks.md, Adaptive maps)."""
         parts, pl.tiles_arrived = pl.tiles_arrived, []
-        idx = np.concatenate([i for i, _, _, _ in parts])
-        arrays = {k: np.concatenate([a[k] for _, a, _, _ in parts]) for k in parts[0][1]}
-        first = np.concatenate([np.full(i.size, r0) for i, _, r0, _ in parts])
-        cand = np.concatenate([v for _, _, _, v in parts])
         for key in pl.landed:
             pl.pending.pop(key, None)
         pl.landed.clear()
-        if cand.any():  # the verification sample's candidates: answers, kept aside
-            if pl.cand is None:
-                pl.cand = Candidates(pl.ref.n_points)
-            pl.cand.add(idx[cand], {k: v[cand] for k, v in arrays.items()}, first[cand])
-            idx, first, arrays = idx[~cand], first[~cand], {k: v[~cand] for k, v in arrays.items()}
-        take = first_tile(idx, first, pl.first_row)
-        idx = idx[take]
-        pl.first_row[idx] = first[take]
-        self._refinement(pl).accept(idx, {k: v[take] for k, v in arrays.items()})
+        for idx, arrays, rows, cand, cells in parts:
+            first = np.full(idx.size, rows[0])
+            if cand.any():  # the verification sample's candidates: answers, kept aside
+                if pl.cand is None:
+                    pl.cand = Candidates(pl.ref.n_points)
+                pl.cand.add(idx[cand], {k: v[cand] for k, v in arrays.items()}, first[cand])
+                idx, first = idx[~cand], first[~cand]
+                arrays = {k: v[~cand] for k, v in arrays.items()}
+            take = first_tile(idx, first, pl.first_row)
+            idx = idx[take]
+            pl.first_row[idx] = first[take]
+            arrays = {k: v[take] for k, v in arrays.items()}
+            self._refinement(pl).install(idx, arrays, rows, cells)  # the same map
 
     @staticmethod
     def _hold(pl: _Plane, new: np.ndarray) -> np.ndarray:
@@ -556,6 +560,9 @@ class AdaptivePlan(ScenePlan):
         pl.outstanding.discard(unit.key)
         pl.computed += 1
         pl.handed = False
+        if not pl.presampled:  # while the workers compute (Refinement.presample)
+            pl.ref.presample(self.spec.verify_fraction, VERIFY_SEED)
+            pl.presampled = True
         if isinstance(unit, Tile):  # every point it simulated, as an arrived point list
             index = np.asarray(arrays["index"], dtype=np.int64)
             pl.landed.add(unit.key)  # its rows stay held until the refinement has it
@@ -564,7 +571,7 @@ class AdaptivePlan(ScenePlan):
             pl.cost[1] += index.size
             if pl.orbits is not None and "final" in arrays:
                 pl.orbits.add(index, arrays["final"])
-            pl.tiles_arrived.append(self._tile_part(index, arrays, unit.rows[0]))
+            pl.tiles_arrived.append(self._tile_part(index, arrays, unit.rows))
             return
         pl.cost[0] += float(arrays["seconds"])
         pl.cost[1] += unit.n_points
@@ -584,12 +591,13 @@ class AdaptivePlan(ScenePlan):
                 f"{int(pl.ref.simulated.sum()):,} of {pl.ref.n_points:,} points simulated so far"
             )
 
-    def _tile_part(self, index: np.ndarray, arrays: dict, first_row: int) -> tuple:
+    def _tile_part(self, index: np.ndarray, arrays: dict, rows: tuple[int, int]) -> tuple:
         """A tile's points as ``tiles_arrived`` holds them: indices, fields, the tile's
-        first row, which are candidates of the verification sample."""
+        rows, which are candidates of the verification sample, its cells (tile_cells)."""
         verify = arrays.get("verify")
         verify = np.zeros(index.size, dtype=bool) if verify is None else np.asarray(verify)
-        return index, {k: arrays[k] for k in self.point_fields()}, first_row, verify
+        fields = {k: arrays[k] for k in self.point_fields()}
+        return index, fields, rows, verify, tile_cells(arrays, ~verify)
 
     @staticmethod
     def _put(pl: _Plane, idx: np.ndarray, arrays: dict[str, np.ndarray]) -> None:
@@ -660,7 +668,7 @@ class AdaptivePlan(ScenePlan):
         layout = self._tile_layout(pl, untiled=bool(idx) and not tiles)
         for rows, (index, arrays) in tiles.items():
             if rows in layout:  # a finished tile: its points arrive at once
-                pl.tiles_arrived.append(self._tile_part(index, arrays, rows[0]))
+                pl.tiles_arrived.append(self._tile_part(index, arrays, rows))
                 pl.reused += index.size
             else:  # a tile of another layout (other worker threads): answers requests
                 idx.append(index)

@@ -77,6 +77,16 @@ def no_ratio(beta_ratio: object) -> None:
         raise StudyError("beta_ratio", "applies to scenes with several contacts (a list contact)")
 
 
+def checked_ratio(beta_ratio: object) -> object:
+    """``beta_ratio`` as given (None), one number >= 0 or a non-empty list of them (the
+    count is checked against the contacts by the scene), or a StudyError naming it."""
+    if beta_ratio is None:
+        return None
+    if fields.is_number(beta_ratio):
+        return fields.number(beta_ratio, "beta_ratio", 0.0)
+    return list(fields.numbers(beta_ratio, "beta_ratio", 0.0))
+
+
 def chain_scene(
     contact: object, dof: int, contact_mass: object, ratios: dict, beta_ratio: object
 ) -> tuple[str | list[str], list[int], MultiScene]:
@@ -84,6 +94,8 @@ def chain_scene(
     ``contact`` one kind or one per contact, fixed ``ratios`` (gamma, kappa): the
     checked kinds, masses and :meth:`MultiScene.chain`, or a StudyError naming the field."""
     masses = list(contact_mass) if fields.is_list(contact_mass) else [contact_mass]
+    if not masses:
+        raise StudyError("contact_mass", "must list at least one mass, got []")
     if len(masses) > MAX_CONTACTS:
         raise StudyError("contact_mass", f"at most {MAX_CONTACTS} contacts, got {len(masses)}")
     masses = [fields.integer(j, f"contact_mass[{i}]", minimum=1) for i, j in enumerate(masses)]

@@ -261,6 +261,7 @@ class SceneSpec:
         def put(key: str, value: object) -> None:
             object.__setattr__(self, key, value)
 
+        put("beta_ratio", contacts.checked_ratio(self.beta_ratio))
         if self.matrices is not None or self.beam is not None:
             self._check_structure()
             dof = self.dof

@@ -80,7 +80,10 @@ def number(v: object, field: str, lower: float | None = None, strict: bool = Fal
     rule = "a finite number" + ("" if lower is None else f" {'>' if strict else '>='} {lower:g}")
     if v is None:
         raise StudyError(field, f"is required ({rule})")
-    ok = is_number(v) and math.isfinite(v)
+    try:
+        ok = is_number(v) and math.isfinite(v)
+    except OverflowError:  # an integer beyond any float
+        ok = False
     if ok and lower is not None:
         ok = v > lower if strict else v >= lower
     if not ok:

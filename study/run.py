@@ -36,7 +36,7 @@ from study.cost import CostTracker
 from study.definition import Study
 from study.drive import Driven, drive, local_threads
 from study.errors import StudyError, StudyFailed, StudyInterrupted
-from study.firstrun import compile_once
+from study.firstrun import compile_once, kernels_for
 from study.preflight import check_run, default_workers, older_result_note
 from study.progress import Progress
 from study.store import WorkDir, os_cause, temporary_outputs
@@ -422,7 +422,8 @@ def _compute(plans, work, where, retries, progress, timeouts, done, stream):
     bar.eta_seconds = bar.tracker.eta
     in_process = local_threads(plans, work, default_workers()) if local and workers is None else 0
     if local:
-        compile_once(stream)  # before the local workers start: they load it from cache
+        # before the local workers start: they load what the scenes need from cache
+        compile_once(stream, kernels_for(plans, work))
     quiet = quiet_dask_logs() if client is None else nullcontext()
     kw = {
         "scheduler_timeout": scheduler_timeout,

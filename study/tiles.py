@@ -202,7 +202,7 @@ def tile_chunk(task: dict) -> dict[str, np.ndarray]:
     ``final`` (their orbits, not saved) and, with ``verify``, ``verify`` (the points
     simulated as candidates of the sample)."""
     from study.compute import _classify
-    from tasks.tiles import refine_tile
+    from tasks.tiles import refine_tile_cells
 
     scene, settings = task["scene"], task["settings"]
 
@@ -210,14 +210,41 @@ def tile_chunk(task: dict) -> dict[str, np.ndarray]:
         return _classify(scene, settings, r, beta, given)
 
     r, beta = task["r"], task["beta"]
-    idx, arrays, final = refine_tile(simulate, r, beta, task["coarse_step"], task["hint"])
+    idx, arrays, final, cells = refine_tile_cells(
+        simulate, r, beta, task["coarse_step"], task["hint"]
+    )
+    level = cells["level"]
     if task.get("verify") is not None:  # then its share of the verification sample
         idx, arrays, final = _with_sample(simulate, task, idx, arrays, final)
+        level = np.concatenate([level, np.full(idx.size - level.size, LEVEL_NONE)])
     order = np.argsort(idx)
     out = {k: v[order] for k, v in arrays.items()}
     out["index"] = idx[order] + task["offset"]  # the tile's flat index + its first row's
     out["final"] = final[order]
+    out["level"] = level[order]  # the tile's cells, for the plane (tile_cells)
+    out["leaves"] = cells["leaves"] + np.array([1, 1, 0, 0]) * (task["offset"] // beta.size)
+    out["leaf_depth"] = cells["leaf_depth"]
     return out
+
+
+#: ``level`` of a tile's point that is no refinement's (a candidate of the sample).
+LEVEL_NONE = np.iinfo(np.int64).max
+#: The arrays of a tile's result that hold its cells (:func:`tile_cells`).
+TILE_CELLS = ("leaves", "leaf_depth", "level")
+
+
+def tile_cells(arrays: dict[str, np.ndarray], refined: np.ndarray) -> dict:
+    """The cells of a tile's result (:func:`tile_chunk`, or its file: it must hold them,
+    ``study.adaptive.AdaptivePlan.expected``) as
+    :meth:`tasks.stream.StreamRefinement.install` takes them (``refined``: its points
+    of the refinement, not of the sample)."""
+    index = np.asarray(arrays["index"], dtype=np.int64)
+    return {
+        "leaves": np.asarray(arrays["leaves"], dtype=np.int64).reshape(-1, 4),
+        "leaf_depth": np.asarray(arrays["leaf_depth"], dtype=np.int64),
+        "level": np.asarray(arrays["level"], dtype=np.int64)[refined],
+        "points": index[refined],
+    }
 
 
 def _with_sample(

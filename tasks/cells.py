@@ -235,3 +235,16 @@ def nearest_corner_sources(
     src_i = np.where(i < (i0 + i1) // 2 + 1, i0, i1)
     src_j = np.where(j < (j0 + j1) // 2 + 1, j0, j1)
     return src_i, src_j
+
+
+def unique_boxes(boxes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``numpy.unique(boxes, axis=0, return_index=True)``: each cell once, in the order of
+    its ``(i0, i1, j0, j1)``, and the first row it is at. Its four indices packed into
+    one int64 (each below 2**15) sort in that order, and a 1-D unique of them costs a
+    few times less than the structured view ``axis=0`` sorts (the refinement calls it
+    once per round of every cell it examines); larger indices take that path."""
+    if not boxes.shape[0] or boxes.max() >= 1 << 15 or boxes.min() < 0:
+        return np.unique(boxes, axis=0, return_index=True)
+    packed = ((boxes[:, 0] << 45) | (boxes[:, 1] << 30)) | ((boxes[:, 2] << 15) | boxes[:, 3])
+    _, at = np.unique(packed, return_index=True)
+    return boxes[at], at

@@ -214,7 +214,7 @@ def _classify(scene, r, beta, fidelity, settings, given, from_given=False):
         kernel.run_points(flat_r, flat_beta, scene_args, settings_args(resolved, c))[0]
         for c in codes[1:]
     ]
-    return result_from_kernel(out, shape, design, scene.contact == "base", others, codes), final
+    return result_from_kernel(out, shape, design, base_influence(scene), others, codes), final
 
 
 def start_codes(settings: Settings) -> list[int]:
@@ -251,7 +251,7 @@ def result_from_kernel(
     out: np.ndarray,
     shape: tuple[int, ...],
     design: np.ndarray | None = None,
-    base: bool = False,
+    base: np.ndarray | None = None,
     others: list[np.ndarray] = (),
     codes: list[int] = (regimes.IC_HELD,),
 ) -> ClassifyResult:
@@ -261,9 +261,10 @@ def result_from_kernel(
     the first start, ``others`` those of the other starts (initial condition
     ``codes``, the first one that of ``out``); ``design``
     :func:`tasks.kernel.orbit_designs`' ``(n_points, 2 N + 3)`` of the first
-    start's orbit (NaN design quantities if omitted); ``base`` says the
-    kernel's coordinates are relative to the base (base-fixed wall,
-    docs/theory.md 2).
+    start's orbit (NaN design quantities if omitted); ``base`` is the
+    influence vector u of a base load (:func:`base_influence`: the kernel's
+    coordinates are then relative to the supports, docs/theory.md 2), None for a
+    force load.
     """
     fields = {
         name: out[:, col].astype(FIELDS[name][0]).reshape(shape)
@@ -286,16 +287,42 @@ def result_from_kernel(
     return ClassifyResult(**fields)
 
 
+def base_influence(scene: Scene) -> np.ndarray | None:
+    """Influence vector u of the scene's base load, None for a force load.
+
+    Under a base load (a base-fixed wall, Eq. 98, or a structure's ``("base", u)``,
+    docs/structures.md 1) the simulator's coordinates z are relative to the
+    supports and the absolute displacement is ``z + u cos(tau)``; a chain's u is
+    all ones.
+    """
+    if not scene.load_scales_r2:
+        return None
+    if scene.structure is None:
+        return np.ones(scene.dof)
+    return np.asarray(scene.structure.load_spec[1], dtype=np.float64)
+
+
 def design_fields(
-    design: np.ndarray | None, n_points: int, shape: tuple[int, ...], base: bool
+    design: np.ndarray | None, n_points: int, shape: tuple[int, ...], base: np.ndarray | None
 ) -> dict[str, np.ndarray]:
     """The design quantities of :data:`tasks.result.FIELDS` from the kernel's columns
-    (all None when ``design`` is None: not computed)."""
+    (all None when ``design`` is None: not computed).
+
+    The kernel samples each coordinate q_i and, under a base load, ``q_i + cos(tau)``
+    (``base``: :func:`base_influence`). That is the absolute displacement where
+    u_i = 1; where u_i = 0 the absolute displacement is q_i itself; any other u_i
+    (a reduced model's support mode) leaves the absolute amplitude NaN, not
+    computed, rather than a wrong number.
+    """
     if design is None:
         return dict.fromkeys(DESIGN_FIELDS)
     n = (design.shape[1] - kernel.DESIGN_SCALARS) // 2
     own, other = design[:, :n], design[:, n : 2 * n]
-    absolute, relative = (other, own) if base else (own, other)
+    if base is None:
+        absolute, relative = own, other
+    else:
+        relative = own
+        absolute = np.where(base == 1.0, other, np.where(base == 0.0, own, np.nan))
     return {
         "amplitude": absolute.reshape((*shape, n)),
         "amplitude_relative": relative.reshape((*shape, n)),

@@ -41,10 +41,17 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import eig
 
-#: Smallest relative separation of two eigenvalues (else: repeated, refused).
-SEPARATION_RTOL = 1e-8
+#: Smallest separation of two eigenvalues, relative to the larger of the two (else:
+#: repeated, refused). Well above sqrt(machine epsilon) = 1.5e-8: rounding splits a
+#: defective double eigenvalue (a critically damped mode of a non-proportional C) by
+#: about that much, with an eigenvector matrix of condition about 1e8 only, which
+#: MAX_CONDITION lets through.
+SEPARATION_RTOL = 1e-6
 #: Largest condition number of the eigenvector matrix (else: defective, refused).
 MAX_CONDITION = 1e10
+#: Largest ratio of the largest to the smallest |nu| (else: refused): phases spanning
+#: more cannot be propagated together in double precision.
+MAX_SPREAD = 1e12
 
 
 @dataclass(frozen=True)
@@ -88,12 +95,22 @@ def _eigen(M: np.ndarray, C: np.ndarray, K: np.ndarray) -> tuple[np.ndarray, np.
             "damping: the damped eigenvectors are (nearly) dependent (a defective or "
             "repeated eigenvalue); the simulator cannot propagate this structure exactly"
         )
-    scale = np.max(np.abs(nu))
-    gaps = np.abs(nu[:, None] - nu[None, :]) + np.eye(2 * n) * scale
-    if np.min(gaps) < SEPARATION_RTOL * scale:
+    mag = np.abs(nu)
+    if not np.min(mag) > np.max(mag) / MAX_SPREAD:
         raise ValueError(
-            "damping: two damped eigenvalues coincide (repeated); the simulator cannot "
-            "propagate this structure exactly"
+            f"damping: the damped eigenvalues spread over more than {MAX_SPREAD:g} (a damping "
+            "far too large for the stiffness); the simulator cannot propagate this structure"
+        )
+    # each gap relative to its own pair's magnitude: a structure's spectrum may span
+    # 1e6 and more, so a gap relative to the largest |nu| would refuse a slow mode's
+    # conjugate pair, however distinct
+    size = np.maximum(np.abs(nu)[:, None], np.abs(nu)[None, :])
+    close = np.abs(nu[:, None] - nu[None, :]) <= SEPARATION_RTOL * size  # no 0 / 0
+    np.fill_diagonal(close, False)
+    if np.any(close):
+        raise ValueError(
+            "damping: two damped eigenvalues coincide (repeated, or defective as of a "
+            "critically damped mode); the simulator cannot propagate this structure exactly"
         )
     return nu, Y[:n]
 

@@ -142,7 +142,16 @@ def _modal_damping(zeta: object, mass: np.ndarray, stiffness: np.ndarray) -> np.
         raise ValueError("damping: modal damping ratios must be finite and >= 0")
     lam, phi = eigh(stiffness, mass)
     mp = mass @ phi
-    return (mp * (2.0 * z * np.sqrt(lam))) @ mp.T, z
+    with np.errstate(over="ignore", invalid="ignore"):
+        return _finite((mp * (2.0 * z * np.sqrt(lam))) @ mp.T), z
+
+
+def _finite(C: np.ndarray) -> np.ndarray:
+    """``C`` when every entry is finite, else a ValueError naming damping (coefficients
+    so large that C overflows)."""
+    if not np.all(np.isfinite(C)):
+        raise ValueError("damping: too large: the damping matrix C overflows")
+    return C
 
 
 def _damping(value: object, mass: np.ndarray, stiffness: np.ndarray):
@@ -161,7 +170,9 @@ def _damping(value: object, mass: np.ndarray, stiffness: np.ndarray):
                 )
             if a == 0.0 and b == 0.0:
                 return "none", None, None
-            return "rayleigh", ("rayleigh", a, b), a * mass + b * stiffness
+            with np.errstate(over="ignore", invalid="ignore"):
+                C = _finite(a * mass + b * stiffness)
+            return "rayleigh", ("rayleigh", a, b), C
         if kind == "modal":
             if len(value) != 2:
                 raise ValueError(f"damping: expected ('modal', zeta), got {value!r}")

@@ -28,6 +28,13 @@ constants are compiled in) and of the Python, numba and numpy versions
 kernel's functions are decorated (numba fixes a function's cache folder at
 decoration), so other numba code in the process keeps its own cache. Every
 process computes the same key from the same sources, so workers share the folder.
+
+There are two compiled simulators (:data:`KERNELS`): the one-contact kernel
+(``"kernel"``) and the several-contact one of :mod:`tasks.multicontact`
+(``"multicontact"``, whose key covers its own modules and the kernel's, which it
+calls). Each is compiled on its first use, announced (:func:`announce_compile`)
+and cached in its own folder; a study compiles those its scenes need, once, in
+the client (:mod:`study.firstrun`).
 """
 
 from __future__ import annotations
@@ -39,6 +46,7 @@ import tempfile
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TextIO
 
@@ -49,9 +57,39 @@ KERNEL_SOURCES = ("kernel/*.py", "regimes.py")
 #: which calls the kernel's functions: its key covers both.
 MULTICONTACT_SOURCES = (*KERNEL_SOURCES, "multicontact/*.py")
 #: How long the first compile takes, as the announcements say it (measured on
-#: 2 cores: 38 s at a load average of 2, 80 s at 3.6, up to 100 s busier).
+#: 2 cores: 38 s at a load average of 2, 80 s at 3.6, up to 100 s busier; the
+#: several-contact simulator alike, docs/simulator.md).
 COMPILE_TIME = "40 s to 2 min on 2 cores, depending on the load"
-_announced = False
+#: The one-contact kernel: the name of its cache folder and of :data:`KERNELS`.
+ONE_CONTACT = "kernel"
+#: The several-contact simulator (:mod:`tasks.multicontact`).
+SEVERAL_CONTACTS = "multicontact"
+
+
+@dataclass(frozen=True)
+class Kernel:
+    """One compiled simulator: what the announcement calls it, its sources (the cache
+    key, :func:`kernel_key`), and the module and name of its entry point (the function
+    whose cache index :func:`is_compiled` reads)."""
+
+    what: str
+    sources: tuple[str, ...]
+    module: str
+    entry: str
+
+
+#: The compiled simulators, by the name of their cache folder.
+KERNELS: dict[str, Kernel] = {
+    ONE_CONTACT: Kernel("the simulator", KERNEL_SOURCES, "tasks.kernel", "run_points_given"),
+    SEVERAL_CONTACTS: Kernel(
+        "the several-contact simulator",
+        MULTICONTACT_SOURCES,
+        "tasks.multicontact.steady",
+        "run_points",
+    ),
+}
+_announced = False  # the one-contact kernel's announcement was made in this process
+_announced_others: set[str] = set()  # the other kernels announced in this process
 
 
 def _writable(folder: Path) -> bool:
@@ -142,70 +180,107 @@ def kernel_cache(
         numba.core.config.CACHE_DIR = previous
 
 
-def cache_dir() -> str:
-    """The folder holding the compiled simulator."""
-    from tasks import kernel
+def _kernel(name: str) -> Kernel:
+    if name not in KERNELS:
+        raise ValueError(f"kernel: one of {', '.join(KERNELS)}, got {name!r}")
+    return KERNELS[name]
 
+
+def _entry(name: str):
+    """The entry point of the simulator ``name`` (imports its package: no compiling)."""
+    import importlib
+
+    kernel = _kernel(name)
+    return getattr(importlib.import_module(kernel.module), kernel.entry)
+
+
+def cache_dir(kernel: str = ONE_CONTACT) -> str:
+    """The folder holding the compiled simulator ``kernel`` (:data:`KERNELS`)."""
     try:
-        return str(kernel.run_points._cache._cache_path)
+        return str(_entry(kernel)._cache._cache_path)
     except AttributeError:  # another numba layout, or NUMBA_DISABLE_JIT
-        return str(kernel_cache_folder())
+        return str(kernel_cache_folder(sources=_kernel(kernel).sources, name=kernel))
 
 
-def is_compiled() -> bool:
-    """Whether the simulator's entry point (``run_points_given``, the one
+def is_compiled(kernel: str = ONE_CONTACT) -> bool:
+    """Whether the entry point of the simulator ``kernel`` is in the on-disk cache,
+    for this source: of the one-contact kernel ``run_points_given`` (the one
     :func:`tasks.classify`, :func:`tasks.classifier.classify_given` and
-    :func:`compile_simulator` call) is in the on-disk cache, for this source.
+    :func:`compile_simulator` call), of the several-contact one
+    :func:`tasks.multicontact.steady.run_points`.
 
     Reads numba's cache index (a stale index, of an edited source, counts as
     absent). When the index cannot be read, answers False (compiling is then
     announced and takes only the time to load it).
     """
-    from tasks import kernel
-
+    entry = _entry(kernel)
     try:
-        return bool(kernel.run_points_given._cache._cache_file._load_index())
+        return bool(entry._cache._cache_file._load_index())
     except Exception:  # numba internals differ: announce rather than stay silent
         return False
 
 
-def announce_compile(stream: TextIO | None = None, prefix: str = "tasks") -> bool:
-    """Say so, in one line (default: on stderr), when the simulator is about to be
-    compiled: once per process, before its first use; nothing when it is cached.
+def compiled(kernel: str) -> bool:
+    """:func:`is_compiled` of ``kernel`` (the one-contact kernel's called as
+    ``is_compiled()``, the form its callers replace in tests)."""
+    return is_compiled() if kernel == ONE_CONTACT else is_compiled(kernel)
+
+
+def announce_compile(
+    stream: TextIO | None = None, prefix: str = "tasks", kernel: str = ONE_CONTACT
+) -> bool:
+    """Say so, in one line (default: on stderr), when the simulator ``kernel`` is about
+    to be compiled: once per process and kernel, before its first use; nothing when
+    it is cached.
 
     Returns whether the line was printed.
     """
     global _announced
-    if _announced:
-        return False
-    _announced = True
+    if kernel == ONE_CONTACT:
+        if _announced:
+            return False
+        _announced = True
+    else:
+        if kernel in _announced_others:
+            return False
+        _announced_others.add(kernel)
     import numba.core.config
 
-    if numba.core.config.DISABLE_JIT or is_compiled():
+    if numba.core.config.DISABLE_JIT or compiled(kernel):
         return False
-    print(compile_message(prefix), file=stream or sys.stderr, flush=True)
+    print(compile_message(prefix, kernel), file=stream or sys.stderr, flush=True)
     return True
 
 
-def compile_message(prefix: str) -> str:
-    """The line announcing the first compile."""
+def compile_message(prefix: str, kernel: str = ONE_CONTACT) -> str:
+    """The line announcing the first compile of the simulator ``kernel``."""
     return (
-        f"{prefix}: compiling the simulator once ({COMPILE_TIME}); "
-        f"cached in {cache_dir()} for later runs ..."
+        f"{prefix}: compiling {_kernel(kernel).what} once ({COMPILE_TIME}); "
+        f"cached in {cache_dir(kernel)} for later runs ..."
     )
 
 
-def compile_simulator() -> float:
-    """Compile (or load) the simulator by classifying two points; returns the seconds."""
+def compile_simulator(kernel: str = ONE_CONTACT) -> float:
+    """Compile (or load) the simulator ``kernel`` by classifying two points (of two
+    contacts for the several-contact one); returns the seconds."""
     import numpy as np
 
-    from tasks.classifier import classify
-    from tasks.scene import Scene
-
     global _announced
-    _announced = True  # the caller announces it (study.firstrun)
-    t0 = time.perf_counter()
-    classify(Scene("ground", 2), np.array([0.8, 1.6]), np.array([0.2, 0.6]))
+    _kernel(kernel)
+    if kernel == ONE_CONTACT:
+        from tasks.classifier import classify
+        from tasks.scene import Scene
+
+        _announced = True  # the caller announces it (study.firstrun)
+        t0 = time.perf_counter()
+        classify(Scene("ground", 2), np.array([0.8, 1.6]), np.array([0.2, 0.6]))
+    else:
+        from tasks.multicontact import MultiScene, classify_multi
+
+        _announced_others.add(kernel)
+        t0 = time.perf_counter()
+        scene = MultiScene.chain("ground", 2, [1, 2])
+        classify_multi(scene, np.array([0.8, 1.6]), np.array([0.2, 0.6]))
     return time.perf_counter() - t0
 
 

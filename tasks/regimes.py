@@ -63,15 +63,17 @@ the energy scale of the forced response (:func:`tasks.kernel._random_start`)."""
 
 SLIP_RTOL = 1e-7
 """Creep threshold: a slip whose amplitude (half peak-to-peak of the contact's
-relative displacement) is below ``SLIP_RTOL * beta * c`` is not motion, ``c = b^T
-K^-1 b`` being the static compliance at the contact, so ``beta c`` is the static
-deflection the friction force produces. Such a slip changes the spring force at
-the contact by less than ``SLIP_RTOL`` of the friction force: the same as holding
-with beta changed by one part in 10^7. It is the same for every preset
-(docs/theory.md 3, creep). Genuine stick-slip has slips this small only within
-about 5e-4 of beta below the motion bound (the slip amplitude there is 0.4-10
-times the square of the relative distance to the bound), inside the tolerance of
-the traced boundaries."""
+relative displacement) is below ``SLIP_RTOL * beta * c`` is not motion, ``c`` being
+the compliance the contact sees at the excitation frequency, ``sum_i (b . psi_i)^2 /
+max(lambda_i, r^2)`` over the modes of the sliding system (the static ``b^T K^-1 b``
+below the natural frequencies, the inertial ``b^T Gamma^-1 b / r^2`` above them;
+:func:`tasks.kernel.creep.creep_threshold`), so ``beta c`` is the deflection the
+friction force produces. Such a slip changes the force at the contact by less than
+``SLIP_RTOL`` of the friction force: the same as holding with beta changed by one
+part in 10^7. It is the same for every preset (docs/theory.md 3, creep). Genuine
+stick-slip has slips this small only within about 5e-4 of beta below the motion
+bound (the slip amplitude there is 0.4-10 times the square of the relative distance
+to the bound, in units of ``beta c``), inside the tolerance of the traced boundaries."""
 CREEP_SLIP_RTOL = 1e-5
 """A creep in progress: cycles whose slips stay below ``CREEP_SLIP_RTOL * beta * c``."""
 CREEP_FORCE_RTOL = 1e-3

@@ -85,6 +85,10 @@ class StreamRefinement(Refinement):
         examine every cell they complete or contradict; new points become ready."""
         idx = np.asarray(idx, dtype=np.int64).ravel()
         super().accept(idx, results)
+        self._examine()
+
+    def _examine(self) -> None:
+        """Examine the leaves the last points contradict and the cells they complete."""
         boxes, depth = self._reopened()  # leaves holding a new disagreeing point
         done = self.simulated.reshape(-1)[self._pending_on].all(axis=1)
         if done.any():
@@ -94,6 +98,46 @@ class StreamRefinement(Refinement):
             self._pending_depth = self._pending_depth[~done]
             self._pending_on = self._pending_on[~done]
         self._evaluate(boxes, depth)
+
+    def install(
+        self,
+        idx: np.ndarray,
+        results: Mapping[str, np.ndarray],
+        rows: tuple[int, int],
+        cells: Mapping[str, np.ndarray],
+    ) -> None:
+        """:meth:`accept` of the points of a tile refined alone (:func:`tasks.tiles.refine_tile`):
+        the tile's own cells (``cells``: its final ``leaves`` and their ``leaf_depth``, in
+        the plane's rows, and the ``level`` of each of its points ``points``) are taken as
+        the tile decided them instead of being examined again.
+
+        ``idx`` (with ``results``) are the tile's points to store (those another tile
+        of smaller r did not give first), ``rows`` its first and last r index. The same
+        state as :meth:`accept` reaches, up to the order-independence of the
+        refinement: a cell of the tile's rows depends only on its own points and the
+        hint, which the tile had, but for the points on the two rows it shares with its
+        neighbours, which a neighbour may have simulated too; so every leaf holding a
+        simulated point of those rows is examined again (:meth:`_reopened`), and the
+        cells waiting for the tile's points are examined as :meth:`accept` does
+        (``tests/test_adaptive_wall.py`` compares both paths)."""
+        idx = np.asarray(idx, dtype=np.int64).ravel()
+        Refinement.accept(self, idx, results)
+        t0, t1 = rows
+        points = np.asarray(cells["points"], dtype=np.int64)
+        np.minimum.at(self._level, points, np.asarray(cells["level"], dtype=np.int64))
+        self._requested[points] = True
+        inside = (self._pending[:, 0] >= t0) & (self._pending[:, 1] <= t1)
+        if inside.any():  # the tile's coarse cells: decided by the tile
+            self._pending = self._pending[~inside]
+            self._pending_depth = self._pending_depth[~inside]
+            self._pending_on = self._pending_on[~inside]
+        leaves = np.asarray(cells["leaves"], dtype=np.int64).reshape(-1, 4)
+        self._leaf_parts.append((leaves, np.asarray(cells["leaf_depth"], dtype=np.int64)))
+        n_b = self.shape[1]
+        edge = np.concatenate([np.arange(t * n_b, (t + 1) * n_b) for t in (t0, t1)])
+        edge = edge[self.simulated.reshape(-1)[edge]]  # the shared rows' simulated points
+        self._last_new = np.divmod(edge, n_b)
+        self._examine()
 
     def level_sizes(self) -> list[int]:
         """Points of the refinement per level: a point's level is the smallest depth (in
@@ -132,7 +176,7 @@ class StreamRefinement(Refinement):
         corners are simulated already are examined in the next round."""
         key, sim = self.key.reshape(-1), self.simulated.reshape(-1)
         while boxes.shape[0]:
-            boxes, at = np.unique(boxes, axis=0, return_index=True)  # each cell once
+            boxes, at = cells.unique_boxes(boxes)  # each cell once
             depth = depth[at]
             leaf = self._settled_many(boxes)
             if self.hint is not None and leaf.any():

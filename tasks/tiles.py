@@ -17,6 +17,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from tasks import cells
 from tasks.adaptive import KEY_FIELDS, coarse_nodes
 from tasks.orbits import Orbits
 from tasks.result import FIELDS
@@ -26,6 +27,24 @@ Simulate = Callable[[np.ndarray, np.ndarray, tuple], dict[str, np.ndarray]]
 """Classify points ``(r, beta)`` seeded by ``given`` (``(r, beta, final)`` of solved
 points): their fields by name and ``final``, their orbits (as
 :func:`tasks.classifier.classify_given` returns them)."""
+
+
+class _TileRefinement(StreamRefinement):
+    """A tile's refinement that also keeps each point's ``corner_level``: the least depth
+    of the cells it is a corner of. A point's level in the plane's refinement, which
+    receives the tile's points all at once (:meth:`tasks.stream.StreamRefinement.install`):
+    there a strip's middles are simulated already when it is examined, so unlike in the
+    tile they are not asked for at the level of a halving."""
+
+    def __init__(self, shape: tuple[int, int], *args: object, **kwargs: object) -> None:
+        self.corner_level = np.full(shape[0] * shape[1], np.iinfo(np.int64).max, dtype=np.int64)
+        super().__init__(shape, *args, **kwargs)
+
+    def _wait(self, boxes, depth, on=None, at=None):
+        if on is None and boxes.shape[0]:  # cells (not a strip's middles) at their depth
+            corners = cells.corners(boxes, self.shape[1])
+            np.minimum.at(self.corner_level, corners.ravel(), np.repeat(depth, 4))
+        return super()._wait(boxes, depth, on, at)
 
 
 def strips(n_r: int, coarse_step: int, k: int) -> list[tuple[int, int]]:
@@ -46,6 +65,18 @@ def refine_tile(
     coarse_step: int,
     hint: np.ndarray | None = None,
 ) -> tuple[np.ndarray, dict[str, np.ndarray], np.ndarray]:
+    """Refine the map of axes ``r`` x ``beta`` (a tile's) until it is settled: the first
+    three returns of :func:`refine_tile_cells`."""
+    return refine_tile_cells(simulate, r, beta, coarse_step, hint)[:3]
+
+
+def refine_tile_cells(
+    simulate: Simulate,
+    r: np.ndarray,
+    beta: np.ndarray,
+    coarse_step: int,
+    hint: np.ndarray | None = None,
+) -> tuple[np.ndarray, dict[str, np.ndarray], np.ndarray, dict[str, np.ndarray]]:
     """Refine the map of axes ``r`` x ``beta`` (a tile's) until it is settled.
 
     Parameters
@@ -67,10 +98,17 @@ def refine_tile(
         Their fields (every field ``simulate`` returns but ``final``).
     final : numpy.ndarray
         Their orbits (rows of ``final``).
+    cells : dict of numpy.ndarray
+        The tile's refinement as it ended, in the tile's indices: ``leaves`` (its
+        uniform cells ``(i0, i1, j0, j1)``), ``leaf_depth`` (their halvings from the
+        coarse cells) and ``level`` (of each point of ``idx``, as
+        :meth:`tasks.stream.StreamRefinement.level_sizes` counts them): the plane's
+        refinement takes them instead of examining the tile's cells again
+        (:meth:`tasks.stream.StreamRefinement.install`).
     """
     shape = (r.size, beta.size)
     layout = {k: (FIELDS[k][0], 0) for k in KEY_FIELDS}
-    ref = StreamRefinement(shape, coarse_step, hint, fields=layout)
+    ref = _TileRefinement(shape, coarse_step, hint, fields=layout)
     orbits = Orbits(shape, coarse_step)
     done: list[tuple[np.ndarray, dict[str, np.ndarray]]] = []
     while (idx := ref.take()).size:  # every ready point at once: one call per round
@@ -81,4 +119,9 @@ def refine_tile(
         done.append((idx, out))
     index = np.concatenate([i for i, _ in done])
     arrays = {k: np.concatenate([a[k] for _, a in done]) for k in done[0][1]}
-    return index, arrays, arrays.pop("final")
+    cells = {
+        "leaves": ref._leaf_boxes().copy(),
+        "leaf_depth": ref._leaf_depth.copy(),
+        "level": ref.corner_level[index],
+    }
+    return index, arrays, arrays.pop("final"), cells

@@ -14,7 +14,12 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from tasks import kernel, numba_cache
-from tasks.classifier import result_from_kernel, scene_modes_cached, settings_args
+from tasks.classifier import (
+    base_influence,
+    result_from_kernel,
+    scene_modes_cached,
+    settings_args,
+)
 from tasks.fidelity import resolve
 from tasks.result import ClassifyResult
 from tasks.scene import Scene
@@ -166,7 +171,7 @@ def trajectory(
         rb = (np.array([r]), np.array([beta]))
         out, final = kernel.run_points(*rb, scene_args, args)
         design, _ = kernel.orbit_designs(*rb, scene_args, args, out, final, kernel.DESIGN_SAMPLES)
-        result = result_from_kernel(out, (), design, scene.contact == "base", codes=[args[9]])
+        result = result_from_kernel(out, (), design, base_influence(scene), codes=[args[9]])
         X0 = final[0, : 2 * n].copy()
         mode0 = int(final[0, 2 * n])
         theta = float(final[0, 2 * n + 1])

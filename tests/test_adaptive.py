@@ -21,7 +21,6 @@ import io
 import numpy as np
 import pytest
 import xarray as xr
-from conftest import local_cluster_client
 
 from analysis.adaptive import adaptive_map, closed_form_hint, curve_hint
 from study import Study
@@ -258,30 +257,34 @@ def test_adaptive_scene_validation(study_file, edit, field):
 
 
 @pytest.mark.cluster
-def test_adaptive_study_on_local_cluster_resumes_after_interruption(tmp_path, monkeypatch):
+def test_adaptive_study_on_local_cluster_resumes_after_interruption(
+    tmp_path, monkeypatch, cluster_client
+):
+    """On the session's LocalCluster (conftest.cluster_client: 2 worker processes on
+    127.0.0.1): the interruption is raised in this process, no worker is stopped."""
     from study import run_study
     from study.adaptive import AdaptivePlan
 
     study = Study.from_toml(_write(tmp_path / "adaptive.toml", ADAPTIVE))
     out = tmp_path / "adaptive.nc"
-    with local_cluster_client(2) as client:
-        real_accept = AdaptivePlan.accept
-        kept = []  # points of the first plane's point lists saved before the interruption
+    client = cluster_client
+    real_accept = AdaptivePlan.accept
+    kept = []  # points of the first plane's point lists saved before the interruption
 
-        def interrupted_accept(self, unit, arrays, *args, **kwargs):
-            real_accept(self, unit, arrays, *args, **kwargs)
-            if unit.sweep == (0,):  # a tile (study.tiles) saves the points it simulated
-                kept.append(arrays["index"].size if "index" in arrays else unit.n_points)
-                if len(kept) == 4:  # Ctrl-C after the fourth point list of the first plane
-                    raise KeyboardInterrupt
+    def interrupted_accept(self, unit, arrays, *args, **kwargs):
+        real_accept(self, unit, arrays, *args, **kwargs)
+        if unit.sweep == (0,):  # a tile (study.tiles) saves the points it simulated
+            kept.append(arrays["index"].size if "index" in arrays else unit.n_points)
+            if len(kept) == 4:  # Ctrl-C after the fourth point list of the first plane
+                raise KeyboardInterrupt
 
-        monkeypatch.setattr(AdaptivePlan, "accept", interrupted_accept)
-        with pytest.raises(StudyInterrupted):
-            run_study(study, out, client=client, progress=False, stream=io.StringIO())
-        assert not out.exists() and (tmp_path / "adaptive.nc.work").is_dir()
-        monkeypatch.setattr(AdaptivePlan, "accept", real_accept)
-        log = io.StringIO()
-        run_study(study, out, client=client, progress=False, stream=log)
+    monkeypatch.setattr(AdaptivePlan, "accept", interrupted_accept)
+    with pytest.raises(StudyInterrupted):
+        run_study(study, out, client=client, progress=False, stream=io.StringIO())
+    assert not out.exists() and (tmp_path / "adaptive.nc.work").is_dir()
+    monkeypatch.setattr(AdaptivePlan, "accept", real_accept)
+    log = io.StringIO()
+    run_study(study, out, client=client, progress=False, stream=log)
     assert not (tmp_path / "adaptive.nc.work").exists()
     first = [
         line for line in log.getvalue().splitlines() if "sweep[0]:" in line and "reused" in line

@@ -39,7 +39,7 @@ from study.errors import StudyFailed
 from study.run import run_study
 from study.store import WorkDir
 from study.verify import META, check_chunk, simulator_version, with_metadata
-from study.watchdog import SCHEDULER_GRACE, Watchdog
+from study.watchdog import ASK_TIMEOUT, LOOK_INTERVAL, SCHEDULER_GRACE, Watchdog
 from tasks import Scene, classify
 
 pytestmark = pytest.mark.cluster
@@ -216,6 +216,10 @@ def _finish(proc: subprocess.Popen) -> tuple[int, list[str], str]:
 
 @pytest.mark.parametrize("fault", ["scheduler", "workers"])
 def test_external_cluster_lost_one_line_exit_1(tmp_path, fault):
+    """A killed scheduler is given up after ``--scheduler-timeout`` (here 5 s, not the
+    default 30 s: the same watchdog path, study.watchdog); lost workers after
+    ``--worker-timeout`` (5 s) while the scheduler answers within the default."""
+    lost_scheduler = ("--scheduler-timeout", "5") if fault == "scheduler" else ()
     with dask_cluster(tmp_path / "cluster", n_workers=1, nanny=False, dashboard=False) as cl:
         out = tmp_path / "long.nc"
         proc = _start_run(
@@ -226,6 +230,7 @@ def test_external_cluster_lost_one_line_exit_1(tmp_path, fault):
             str(cl.scheduler_file),
             "--worker-timeout",
             "5",
+            *lost_scheduler,
             "--quiet",
         )
         _wait_saved(out, 2, proc)
@@ -241,7 +246,9 @@ def test_external_cluster_lost_one_line_exit_1(tmp_path, fault):
     assert "rerun to resume" in errors[0]
     if fault == "workers":
         assert "no worker connected to the scheduler for" in errors[0], err
-    assert took < 5 + SCHEDULER_GRACE + 60
+        assert took < 5 + SCHEDULER_GRACE + 60
+    else:  # "lost the scheduler", or its tasks "cancelled by the scheduler"
+        assert took < 5 + LOOK_INTERVAL + ASK_TIMEOUT + 2 * 5 + 30, took  # see test_door_faults
     assert len(list(out.with_name("long.nc.work").glob("*/*.npz"))) >= 2  # work kept
 
 

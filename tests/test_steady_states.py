@@ -333,7 +333,7 @@ def test_every_start_reaches_no_motion_above_the_held_margin(case):
     assert kernel.held_margin(ctx) == pytest.approx(delta, rel=1e-9, abs=1e-12)
     M, K = scene.mass_matrix(r), scene.stiffness_matrix()
     energies = []
-    for cycles in (1, 2, 3, 5, 8, 13, 21):
+    for cycles in (1, 2, 3, 5, 8):  # each a run from rest: 19 cycles in all
         _, info = baseline.paper_method(scene, r, beta, cycles=cycles, atol=1e-12)
         e, ed = info["x_end"] - x_h, info["xd_end"]  # x_h' = 0 at tau = 2 pi k
         energies.append(0.5 * ed @ M @ ed + 0.5 * e @ K @ e)

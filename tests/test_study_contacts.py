@@ -225,7 +225,7 @@ def test_report_has_a_section_per_contact(written):
     assert (ws / "rep" / "two_walls_contacts.png").stat().st_size > 10_000
     # the held closed forms, a figure per plane of a sweep (the first 4), adaptive maps
     assert "### Closed forms with the other contacts held" in text
-    assert "| 0: ground 0 (beta_ratio 1) | 36 | 36 | 100.0 % |" in text
+    assert "| 0: ground 0 (beta_ratio 1) | 38 | 38 | 100.0 % |" in text
     assert "Figures of the first 4 of 6 planes." in text
     for k in range(4):
         assert (ws / "rep" / f"swept_contacts_{k}.png").stat().st_size > 10_000

@@ -18,8 +18,11 @@ from tasks.kernel.layout import (
     CTX_B,
     CTX_BETA,
     CTX_K,
+    CTX_PHI,
     CTX_SC,
+    CTX_SEG_SLIP,
     CTX_SEG_STICK,
+    OMEGA,
     OUT_AMP,
     OUT_ASYMPTOTIC,
     OUT_CONVERGED,
@@ -40,19 +43,43 @@ from tasks.regimes import CREEP_FORCE_RTOL, NO_MOTION, SLIP_RTOL, STICK_SLIP
 
 
 @njit(cache=True)
-def creep_threshold(ctx, beta):
+def creep_threshold(ctx, beta, r):
     """Slip amplitude below which a slip is not motion: ``SLIP_RTOL * beta * c``.
 
-    ``c = b^T K^-1 b`` is the static compliance the contact sees, so ``beta c``
-    is the static deflection the friction force produces at the contact. A slip
-    of amplitude ``a`` changes the spring force at the contact by about
-    ``a / c``; below the threshold that is less than ``SLIP_RTOL`` of the
-    friction force, i.e. indistinguishable from holding with a friction ratio
-    changed by one part in ``1 / SLIP_RTOL`` (docs/theory.md 3, creep).
+    ``c`` is the compliance the contact sees at the excitation frequency, so
+    ``beta c`` is the deflection the friction force produces at the contact. A
+    slip of amplitude ``a`` changes the force at the contact by about ``a / c``;
+    below the threshold that is less than ``SLIP_RTOL`` of the friction force,
+    i.e. indistinguishable from holding with a friction ratio changed by one part
+    in ``1 / SLIP_RTOL`` (docs/theory.md 3, creep). In the modes of the sliding
+    system (``lambda_i``, ``psi_i``, Eq. 40), each mode answers with its spring
+    below its natural frequency and with its inertia above it::
+
+        c = sum_i (b . psi_i)^2 / max(lambda_i, r^2),
+
+    the static compliance ``b^T K^-1 b`` where every mode is faster than the
+    excitation (``r^2 <= lambda_1``), the inertial ``b^T Gamma^-1 b / r^2`` where
+    every mode is slower. (The static compliance alone overstates the threshold
+    by ``r^2 / lambda`` above the natural frequencies and took genuine stick-slip
+    well below the motion bound for no motion.) A structure whose damping is not
+    proportional (no real modes) keeps the static compliance.
     """
     b = ctx[CTX_B]
-    c = _dot(b, _solve(ctx[CTX_K], b))
-    return SLIP_RTOL * beta * abs(c)
+    static = abs(_dot(b, _solve(ctx[CTX_K], b)))
+    phi = ctx[CTX_PHI]
+    n = b.shape[0]
+    r2 = r * r
+    if phi.shape[0] != n:
+        return SLIP_RTOL * beta * static
+    seg = ctx[CTX_SEG_SLIP]
+    c = 0.0
+    for k in range(n):
+        bk = 0.0
+        for i in range(n):
+            bk += b[i] * phi[i, k]
+        lam = seg[OMEGA, k] * seg[OMEGA, k] * r2
+        c += bk * bk / max(lam, r2)
+    return SLIP_RTOL * beta * min(c, static)
 
 
 @njit(cache=True)

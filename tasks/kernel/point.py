@@ -163,7 +163,7 @@ def simulate_point(r, beta, scene, settings, out, final, keep, kept):
     ctx, work, X, mode, ic_used = _context(r, beta, scene, settings)
     out[OUT_ASYMPTOTIC] = 0.0
     kept[0] = 0
-    slip_tol = creep_threshold(ctx, beta)
+    slip_tol = creep_threshold(ctx, beta, r)
     small_run = 0
     quiet_run = 0
     n = X.shape[0] // 2
@@ -485,7 +485,7 @@ def warm_point(r, beta, scene, settings, out, final, seed, keep, kept):
         return False, used
     out[OUT_ASYMPTOTIC] = 0.0
     _finish(out, stats, stats, 1, used, ic_used)
-    _creep_limit(out, creep_threshold(ctx, beta))
+    _creep_limit(out, creep_threshold(ctx, beta, r))
     if not _seeds_next(out):  # no motion by the creep rule: the held start decides
         kept[0] = 0
         return False, used
@@ -539,7 +539,7 @@ def polish_point(r, beta, scene, settings, out, final, keep, kept):
     final[: 2 * n] = Xs
     final[2 * n] = start_phase(Xs, ctx[CTX_BETA], ctx, theta) if mode != 0 else 0
     _finish(out, stats, stats, 1, cycles, out[OUT_IC])
-    _creep_limit(out, creep_threshold(ctx, beta))
+    _creep_limit(out, creep_threshold(ctx, beta, r))
     return used
 
 

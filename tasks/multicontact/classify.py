@@ -112,7 +112,7 @@ def stuck_sets_cached(scene: MultiScene) -> StuckSets:
 def run_raw(scene: MultiScene, r: np.ndarray, beta: np.ndarray, settings: tuple):
     """The compiled simulator's raw output for flat arrays ``r``, ``beta``."""
     args = stuck_sets_cached(scene).kernel_args()
-    numba_cache.announce_compile()
+    numba_cache.announce_compile(kernel=numba_cache.SEVERAL_CONTACTS)
     return steady.run_points(
         np.ascontiguousarray(r, dtype=float),
         np.ascontiguousarray(beta, dtype=float),

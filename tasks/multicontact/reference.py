@@ -18,7 +18,9 @@ Cycles run until the section state repeats (period 1 or 2, relative 1e-7) or
 Poincare map (taken only where it attracts). Each contact's regime is read from
 the last period (stuck throughout: no motion; stuck for more than 1e-6 at a
 time: stick-slip, unless its slip amplitude, half the range of ``b_c . x``, is
-below the creep threshold ``SLIP_RTOL beta_c b_c^T K^-1 b_c`` of docs/contacts.md 4: no motion; else
+below the creep threshold ``SLIP_RTOL beta_c c_c`` of docs/contacts.md 4 (``c_c`` the compliance
+contact c sees at the excitation frequency: ``b_c^T K^-1 b_c`` below the natural
+frequencies, the inertial one above): no motion; else
 continuous). Slow (a pure Python loop): for tests and benchmarks only.
 """
 
@@ -28,7 +30,7 @@ import itertools
 import math
 
 import numpy as np
-from scipy.linalg import expm
+from scipy.linalg import eigh, expm
 from scipy.optimize import brentq, root
 
 from tasks import regimes
@@ -231,6 +233,8 @@ def _cycle(sys: _System, y, stuck, signs, stats):
                 cand.append(c)
                 free.pop(c)
         cand = [c for c in cand if sys.betas[c] > 0.0]
+        # a contact without friction that fired slides on with no force (sign 0)
+        free.update({c: 0.0 for c in range(sys.k) if c not in cand and c not in free})
         new_stuck, new_signs = sys.decide(t1, y1[:n], y1[n:], cand, free)
         for c in range(sys.k):
             if c in stuck and c not in new_stuck:
@@ -336,6 +340,12 @@ def _regimes(history, sys: _System) -> tuple[np.ndarray, np.ndarray]:
     amplitudes = np.empty(sys.k)
     span = 2 * math.pi * len(history)
     compliance = np.einsum("ik,ik->k", sys.B, np.linalg.solve(sys.K, sys.B))
+    if np.any(sys.rC):  # damped: static or inertial, the smaller
+        inertial = np.einsum("ik,ik->k", sys.B, sys.Ginv @ sys.B) / sys.r2
+    else:  # each mode answers with its spring below resonance, its inertia above
+        lam, psi = eigh(sys.K, sys.G)
+        inertial = ((sys.B.T @ psi) ** 2 / np.maximum(lam, sys.r2)).sum(axis=1)
+    compliance = np.minimum(compliance, inertial)
     for c in range(sys.k):
         amplitude = 0.5 * (
             max(h[2][c]["dmax"] for h in history) - min(h[2][c]["dmin"] for h in history)

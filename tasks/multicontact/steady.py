@@ -20,7 +20,7 @@ from numba import njit, prange
 
 from tasks.kernel.damping import particular
 from tasks.kernel.layout import TWO_PI
-from tasks.multicontact import viscous
+from tasks.multicontact import creep, viscous
 from tasks.multicontact.cycle import run_cycle
 from tasks.multicontact.decide import decide
 from tasks.multicontact.layout import (
@@ -48,6 +48,7 @@ from tasks.multicontact.layout import (
     CX_SIZE,
     CX_STICK_MIN,
     CX_X,
+    GS_EVENTS,
     GS_FOREVER,
     GS_STATUS,
     GS_VISCOUS,
@@ -72,6 +73,8 @@ from tasks.multicontact.layout import (
 )
 from tasks.regimes import (
     CONTINUOUS,
+    CREEP_SLIP_RTOL,
+    CREEP_WINDOW,
     IC_HELD,
     IC_RANDOM,
     IC_REST,
@@ -485,7 +488,7 @@ def _finish(X, stuck, signs, ctx, period, cycles, ic, out_g, out_c, max_work):
         if tot[c, CS_STUCK_TIME] >= span - ctx[CX_STICK_MIN]:
             out_c[c, OC_REGIME] = NO_MOTION
         elif tot[c, CS_STOPS] > 0.0:
-            if 0.5 * slip_range < SLIP_RTOL * betas[c] * ctx[CX_COMPLIANCE][c]:
+            if 0.5 * slip_range < SLIP_RTOL * betas[c] * creep.creep_compliance(ctx, c):
                 # a stick-slip below the creep threshold: held (tasks.kernel.creep)
                 out_c[c, OC_REGIME] = NO_MOTION
                 out_c[c, OC_STOPS] = 0.0
@@ -495,6 +498,30 @@ def _finish(X, stuck, signs, ctx, period, cycles, ic, out_g, out_c, max_work):
         else:
             out_c[c, OC_REGIME] = CONTINUOUS
     out_g[OG_ASYMPTOTIC] = 1.0 if asymptotic else 0.0
+
+
+@njit(cache=True)
+def _settle(X, stuck, signs, ctx, held, betas, period, cycles, ic, out_g, out_c, amps, max_work):
+    """The creep rule's result (docs/contacts.md 4): the contacts ``held`` (``-1``: every
+    contact, already certified by the stuck structure's bound) reach no motion,
+    ``asymptotic``, their last creeping cycle's slip amplitude kept as a diagnostic
+    (``ctx`` holds them: the period found is the others' steady state). The others'
+    orbit must certify the held ones (:func:`tasks.multicontact.creep.swing_certified`);
+    else the point is ``not_converged`` (flagged, never guessed). Nothing held: nothing."""
+    if held == 0 or out_g[OG_CONVERGED] == 0.0:
+        return
+    if held < 0:
+        held = ctx[CX_ACTIVE]
+    elif not creep.swing_certified(X, stuck, signs, ctx, held, betas, period, max_work):
+        _undetermined(out_g, out_c, NOT_CONVERGED, cycles, ic)
+        return
+    for c in range(out_c.shape[0]):
+        if (held >> c) & 1:
+            out_c[c, OC_REGIME] = NO_MOTION
+            out_c[c, OC_STOPS] = 0.0
+            out_c[c, OC_AMP] = amps[c]
+            out_c[c, OC_DISSIPATION] = 0.0
+    out_g[OG_ASYMPTOTIC] = 1.0
 
 
 @njit(cache=True)
@@ -619,18 +646,71 @@ def simulate_point(r, beta, args, settings, out_g, out_c):
     cycles = 0
     work = 0.0
     next_shot = shooting_after
+    # the creep rule (tasks.multicontact.creep): per-contact runs, the stuck
+    # structure's window (as one contact's), the contacts it holds, their last slips
+    runs = np.zeros((k, 3), dtype=np.int64)
+    prev_drift = np.zeros(k, dtype=np.int64)
+    drift = np.zeros(k)
+    small_run = 0
+    quiet_run = 0
+    held = 0
+    refused = 0  # creeps the cycle at hand did not certify
+    betas = ctx[CX_BETAS]
+    amps = np.zeros(k)
+    period = 0  # of the steady state found
     while cycles < max_cycles:
         s_before = signs.copy()
         st_before = stuck
-        Xn, stuck, _ = _period(X, stuck, signs, cst, gst, ctx, 1, max_work - work, False)
+        Xn, stuck, tot = _period(X, stuck, signs, cst, gst, ctx, 1, max_work - work, False)
         cycles += 1
         work += gst[GS_WORK]
         if gst[GS_STATUS] != 0.0:
             _undetermined(out_g, out_c, gst[GS_STATUS], cycles, used)
             return X, stuck, signs
         if gst[GS_FOREVER] > 0.0:  # every contact stuck for ever: no motion
-            _finish(X, st_before, s_before, ctx, 1, cycles, used, out_g, out_c, max_work)
-            return X, st_before, s_before
+            stuck = st_before
+            signs = s_before
+            period = 1
+            break
+        if held == 0:
+            small = True
+            for c in range(k):
+                amps[c] = 0.5 * (tot[c, CS_DMAX] - tot[c, CS_DMIN])
+                if (ctx[CX_ACTIVE] >> c) & 1:
+                    small &= amps[c] < CREEP_SLIP_RTOL * betas[c] * ctx[CX_COMPLIANCE][c]
+            small_run = small_run + 1 if small else 0
+            quiet_run = (
+                quiet_run + 1 if small and gst[GS_EVENTS] == 0.0 else (quiet_run if small else 0)
+            )
+            prev_drift[:] = runs[:, 2]
+            held = creep.update(X, Xn, stuck, tot, ctx, runs, drift, refused)
+            if (
+                small_run >= CREEP_WINDOW
+                and 2 * quiet_run > small_run
+                and creep.all_stuck_settled(Xn, stuck, signs, ctx)
+            ):  # the stuck structure settles as one contact does: hold it, finish
+                hctx = creep.held_context(ctx, ctx[CX_ACTIVE])
+                _finish(Xn, stuck, signs, hctx, 1, cycles, used, out_g, out_c, max_work)
+                _settle(
+                    Xn, stuck, signs, hctx, -1, betas, 1, cycles, used, out_g, out_c, amps, max_work
+                )
+                return Xn, stuck, signs
+            if held == ctx[CX_ACTIVE]:
+                held = 0  # every contact creeps: the stuck structure's window decides
+            if held != 0 and not creep.swing_certified(
+                Xn, stuck, signs, creep.held_context(ctx, held), held, betas, 1, max_work
+            ):  # not certified on the cycle at hand: the creep keeps running as it is
+                refused |= held
+                held = 0
+            if held != 0:  # others move: continue with the creeping contacts held
+                ctx = creep.held_context(ctx, held)
+                runs[:, 2] = 0
+                prev_drift[:] = 0
+                X1 = Xn + 1e300
+                X2 = X1
+                next_shot = cycles + shooting_after
+                X = Xn
+                continue
         X2 = X1
         st2 = st1
         sg2 = sg1
@@ -642,29 +722,39 @@ def simulate_point(r, beta, args, settings, out_g, out_c):
         if scale > growth_factor * ref:
             _undetermined(out_g, out_c, UNBOUNDED, cycles, used)
             return X, stuck, signs
+        # a contact drifting one way (creep.update) over the period: no steady state,
+        # whatever the tolerance
+        drifts = np.any(runs[:, 2] != 0)
+        drifts2 = np.any((runs[:, 2] != 0) & (runs[:, 2] == prev_drift))
         if cycles >= min_cycles:
-            if stuck == st1 and np.all(signs == sg1):
+            if stuck == st1 and not drifts and np.all(signs == sg1):
                 if _max_abs(X - X1) <= section_rtol * scale:
-                    X = polish(X, stuck, signs, ctx, 1, max_work)
-                    _finish(X, stuck, signs, ctx, 1, cycles, used, out_g, out_c, max_work)
-                    return X, stuck, signs
-            if stuck == st2 and np.all(signs == sg2):
+                    period = 1
+                    break
+            if stuck == st2 and not drifts2 and np.all(signs == sg2):
                 if _max_abs(X - X2) <= section_rtol * scale:
-                    X = polish(X, stuck, signs, ctx, 2, max_work)
-                    _finish(X, stuck, signs, ctx, 2, cycles, used, out_g, out_c, max_work)
-                    return X, stuck, signs
-        if shooting and cycles >= next_shot:
-            next_shot = cycles + SHOOT_EVERY
+                    period = 2
+                    break
+        # a contact creeping in one direction: no fixed point on this branch (its
+        # relative displacement drifts), Newton would only spend the cycles it needs
+        if shooting and cycles >= next_shot and not creep.creeping(runs, refused):
             Xs, used_cycles, ok = _newton(
                 X.copy(), stuck, signs.copy(), cst.copy(), gst, ctx, max_work, section_rtol
             )
             cycles += used_cycles
+            next_shot = cycles + SHOOT_EVERY  # 20 cycles of iteration between attempts
             gst[GS_STATUS] = 0.0
             if ok:
                 X = Xs
                 X1 = Xs + 1e300  # the plain test must see the fixed point repeat
                 X2 = X1
-    _undetermined(out_g, out_c, NOT_CONVERGED, cycles, used)
+    if period == 0:
+        _undetermined(out_g, out_c, NOT_CONVERGED, cycles, used)
+        return X, stuck, signs
+    if gst[GS_FOREVER] == 0.0:
+        X = polish(X, stuck, signs, ctx, period, max_work)
+    _finish(X, stuck, signs, ctx, period, cycles, used, out_g, out_c, max_work)
+    _settle(X, stuck, signs, ctx, held, betas, period, cycles, used, out_g, out_c, amps, max_work)
     return X, stuck, signs
 
 

@@ -1,0 +1,798 @@
+"""A seeded random audit on scenes nobody wrote down (docs/benchmarks.md, "Random audit").
+
+Draws chains (ground-fixed wall, base-fixed wall, contact between masses; 2-8
+masses, the contact anywhere, gamma_i and kappa_i log-uniform in 1e-3..1e3), the
+same as matrices with Rayleigh or modal damping, 2-3 contacts (chains, beams) and
+beams; r near a free or held resonance or log-uniform, beta log-uniform or near
+the no-motion bound. Checks: ``reference`` (the scipy integrators
+:func:`tasks.baseline.paper_method` and
+:func:`tasks.multicontact.reference.reference_point`; a difference is re-run
+longer and tighter, the theorem of docs/theory.md 3 decides above the motion
+bound, a point the simulator flags is honest), ``matrices`` (M, K, p, b rebuilt
+by hand), ``reduction`` (a frictionless second contact changes nothing),
+``energy`` (work of the load = friction + viscous dissipation), ``closed form``
+(the exact statements of docs/theory.md 3-4), ``units`` and ``symmetry``
+(rescaled forces and time, permuted DOFs, -p and -b, reordered or mirrored
+contacts), ``limits`` (beta -> inf: held amplitudes; beta -> 0: free ones) and
+``cli`` (valid study files through ``study run``, invalid ones: exit code 2, one
+line naming the field, no file).
+
+    nice -n 10 python benchmarks/audit_random.py --seed 1 --cases 6
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+from scipy.linalg import eigh
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from analysis.closed_form import continuous_bound, held_resonances, motion_bound  # noqa: E402
+from tasks import Scene, classify, regimes, trajectory  # noqa: E402
+from tasks.baseline import paper_method  # noqa: E402
+from tasks.multicontact import MultiScene  # noqa: E402
+from tasks.multicontact.reference import reference_point  # noqa: E402
+from tasks.structures import beam  # noqa: E402
+
+REF_MAX_SPREAD = 25.0
+"""Largest (fastest natural frequency) / r a Python reference integrates."""
+RATIO_SPAN = (1e-3, 1e3)
+"""Mass and stiffness ratios are drawn log-uniform in this span."""
+
+COUNTS: dict[str, dict[str, int]] = defaultdict(lambda: defaultdict(int))
+FINDINGS: list[str] = []
+WHERE = {"case": "-"}
+"""The case being audited (its index, so that a finding names its draw)."""
+
+
+def _count(check: str, outcome: str, note: str | None = None) -> None:
+    COUNTS[check][outcome] += 1
+    COUNTS[check]["checked"] += 1
+    if note is not None:
+        FINDINGS.append(f"[{check}: {outcome}] case {WHERE['case']}: {note}")
+
+
+def _loguniform(rng: np.random.Generator, lo: float, hi: float, size=None):
+    return np.exp(rng.uniform(math.log(lo), math.log(hi), size))
+
+
+# --------------------------------------------------------------------- scenes
+def draw_chain(rng: np.random.Generator) -> Scene:
+    """A chain of one contact nobody wrote down."""
+    kind = str(rng.choice(["ground", "base", "mass"]))
+    dof = int(rng.integers(2, 9))
+    last = dof - 1 if kind == "mass" else dof
+    j = int(rng.integers(1, last + 1))
+    gamma = [float(v) for v in _loguniform(rng, *RATIO_SPAN, dof - 1)]
+    kappa = [float(v) for v in _loguniform(rng, *RATIO_SPAN, dof - 1)]
+    return Scene(kind, dof, j, gamma=gamma, kappa=kappa)
+
+
+def draw_damped(rng: np.random.Generator) -> Scene:
+    """A chain as matrices with Rayleigh or modal damping (zeta 0.1 %-10 %)."""
+    chain = draw_chain(rng)
+    kw = chain.matrices()
+    if rng.uniform() < 0.5:
+        lam = eigh(kw["stiffness"], kw["mass"], eigvals_only=True)
+        w1 = math.sqrt(lam[0])
+        zeta = float(_loguniform(rng, 1e-3, 1e-1))
+        kw["damping"] = ("rayleigh", zeta * w1, zeta / w1)  # zeta at w1
+    else:
+        kw["damping"] = ("modal", float(_loguniform(rng, 1e-3, 1e-1)))
+    return Scene.from_matrices(**kw)
+
+
+def draw_beam(rng: np.random.Generator, contacts: int = 1):
+    """A beam (a few elements, Craig-Bampton to its contact DOFs and 1-3 modes)."""
+    n = int(rng.integers(3, 9))
+    supports = str(rng.choice(["cantilever", "pinned"]))
+    lo = 1
+    nodes = sorted(int(v) for v in rng.choice(np.arange(lo, n), contacts, replace=False))
+    if supports == "cantilever" and rng.uniform() < 0.5:
+        nodes[-1] = n
+    load = str(rng.choice(["tip", "distributed"]))
+    kw = {"n_elements": n, "supports": supports, "load": load, "modes": int(rng.integers(1, 4))}
+    if contacts == 1:
+        return beam(contact_node=nodes[0], **kw)
+    ratio = [float(v) for v in rng.uniform(0.3, 1.5, contacts)]
+    return beam(contact_node=nodes, beta_ratio=ratio, **kw)
+
+
+def draw_multi(rng: np.random.Generator) -> MultiScene:
+    """A chain with 2-3 contacts (walls and contacts between masses) or a beam with 2."""
+    if rng.uniform() < 0.25:
+        return draw_beam(rng, 2)
+    dof = int(rng.integers(2, 7))
+    k = int(rng.integers(2, min(3, dof) + 1))
+    wall = str(rng.choice(["ground", "base"]))
+    while True:
+        kinds = [wall if dof < 3 or rng.uniform() < 0.6 else "mass" for _ in range(k)]
+        masses = [int(rng.integers(1, dof + (0 if kd == "mass" else 1))) for kd in kinds]
+        specs = {(kd, m) for kd, m in zip(kinds, masses, strict=True)}
+        if len(specs) == k:
+            break
+    gamma = [float(v) for v in _loguniform(rng, 1e-2, 1e2, dof - 1)]
+    kappa = [float(v) for v in _loguniform(rng, 1e-2, 1e2, dof - 1)]
+    ratio = [float(v) for v in rng.uniform(0.3, 1.5, k)]
+    return MultiScene.chain(kinds, dof, masses, gamma, kappa, ratio)
+
+
+def _structure(scene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(M at r = 1, K, rC at r = 1)`` of any scene."""
+    return scene.mass_matrix(1.0), scene.stiffness_matrix(), scene.damping_matrix(1.0)
+
+
+def free_frequencies(scene) -> np.ndarray:
+    M, K, _ = _structure(scene)
+    return np.sqrt(eigh(K, M, eigvals_only=True))
+
+
+def draw_points(rng: np.random.Generator, scene, n: int) -> list[tuple[float, float, str]]:
+    """``n`` points: r near a resonance (free or held) or log-uniform; beta log-uniform
+    around the no-motion threshold or within 1-10 % of it."""
+    w = free_frequencies(scene)
+    held = []
+    if isinstance(scene, Scene) and not scene.damped:
+        held = list(held_resonances(scene))
+    out = []
+    for _ in range(n):
+        u = rng.uniform()
+        if u < 0.3:
+            r = float(rng.choice(w)) * (1.0 + rng.choice([-1, 1]) * _loguniform(rng, 1e-3, 5e-2))
+            tag = "near free resonance"
+        elif u < 0.45 and held:
+            r = float(rng.choice(held)) * (1.0 + rng.choice([-1, 1]) * _loguniform(rng, 1e-3, 5e-2))
+            tag = "near held resonance"
+        else:
+            r = float(_loguniform(rng, 0.2 * w[0], 1.5 * w[-1]))
+            tag = "log-uniform"
+        r = min(max(r, 1.1e-4), 0.9e4)
+        scale = 1.0
+        if isinstance(scene, Scene) and not scene.damped:
+            mb = float(motion_bound(scene, np.array([r]))[0])
+            if math.isfinite(mb) and mb > 0.0:
+                scale = mb
+        if rng.uniform() < 0.3:
+            beta = scale * (1.0 + rng.choice([-1, 1]) * _loguniform(rng, 1e-2, 1e-1))
+            tag += ", beta near no-motion bound"
+        else:
+            beta = scale * float(_loguniform(rng, 1e-2, 3.0))
+        out.append((r, float(min(beta, 9e5)), tag))
+    return out
+
+
+def describe(scene) -> str:
+    if isinstance(scene, MultiScene):
+        return f"{scene.label_hint or 'multi'} contacts={scene.contacts} ratio={scene.beta_ratio}"
+    if scene.structure is not None:
+        d = scene.structure.damping
+        return f"{scene.label} damping={'none' if d is None else 'yes'}"
+    g = ",".join(repr(v) for v in scene.gammas[1:])
+    k = ",".join(repr(v) for v in scene.kappas[1:])
+    return f"{scene.label} gamma=[{g}] kappa=[{k}]"
+
+
+# --------------------------------------------------------------------- checks
+def check_matrices(scene: Scene) -> None:
+    """Rebuild M, K, p, b of a chain by hand (Eqs. 65-69, 98; docs/theory.md 2)."""
+    n = scene.dof
+    g = np.array(scene.gammas)
+    k = np.array([*scene.kappas, 0.0])
+    r = 1.7
+    M = r * r * np.diag(g)
+    K = np.zeros((n, n))
+    for i in range(n):
+        K[i, i] = k[i] + k[i + 1]
+        if i + 1 < n:
+            K[i, i + 1] = K[i + 1, i] = -k[i + 1]
+    p = r * r * g if scene.contact == "base" else np.eye(n)[0]
+    j = scene.contact_mass - 1
+    b = np.eye(n)[j] if scene.contact != "mass" else np.eye(n)[j + 1] - np.eye(n)[j]
+    ok = (
+        np.allclose(M, scene.mass_matrix(r), rtol=1e-15, atol=0)
+        and np.allclose(K, scene.stiffness_matrix(), rtol=1e-15, atol=0)
+        and np.allclose(p, scene.load_vector(r), rtol=1e-15, atol=0)
+        and np.array_equal(b, scene.contact_vector())
+    )
+    _count("matrices", "agree" if ok else "MISMATCH", None if ok else describe(scene))
+
+
+def _single_as_multi(scene: Scene) -> MultiScene:
+    kw = scene.matrices()
+    kw["contact"] = [kw["contact"]]
+    return MultiScene.from_matrices(**kw, beta_ratio=[1.0])
+
+
+def _spread(scene, r: float) -> float:
+    return float(free_frequencies(scene)[-1] / r)
+
+
+def check_reference(scene, pts, res_regime, res_conv, budget) -> None:
+    """Per point and contact: the simulator against the scipy reference(s)."""
+    multi = isinstance(scene, MultiScene)
+    for i, (r, beta, tag) in enumerate(pts):
+        if _spread(scene, r) > REF_MAX_SPREAD or time.process_time() > budget:
+            _count("reference", "skipped (cost)")
+            continue
+        kern = np.atleast_1d(res_regime[i])
+        if multi:
+            ref = np.asarray(reference_point(scene, r, beta, max_cycles=300)[0])
+        else:
+            ref = np.array([paper_method(scene, r, beta)[0]])
+        for c in range(kern.size):
+            if int(kern[c]) == int(ref[c]):
+                _count("reference", "agree")
+                continue
+            where = f"{describe(scene)} r={r!r} beta={beta!r} ({tag}) contact {c}"
+            if kern[c] < 0 or not res_conv[i]:
+                _count("reference", "kernel flagged")
+                continue
+            # decide who is wrong: the references run longer and tighter
+            m = scene if multi else _single_as_multi(scene)
+            long_ref, _, long_ok = reference_point(m, r, beta, max_cycles=1200)
+            votes = [int(long_ref[c]) if long_ok else None]
+            if not multi:
+                code2, _ = paper_method(scene, r, beta, cycles=400, atol=1e-10)
+                votes.append(code2 if code2 >= 0 else None)
+            settled = [v for v in votes if v is not None]
+            if not multi and not scene.damped:
+                # above the motion bound every start reaches no motion (docs/theory.md 3):
+                # a reference still slipping there is a creep from rest, not a regime
+                mb = float(motion_bound(scene, np.array([r]))[0])
+                if beta >= mb * (1.0 + 1e-6):
+                    votes.append("theorem: no_motion")
+                    settled = [regimes.NO_MOTION]
+            note = (
+                f"{where}: simulator {regimes.ALL_CODES[int(kern[c])]}, reference "
+                f"{regimes.ALL_CODES.get(int(ref[c]), ref[c])}, longer references {votes}"
+            )
+            if settled and all(v == int(kern[c]) for v in settled):
+                _count("reference", "reference wrong (transient)", note)
+            elif settled and len(set(settled)) == 1:
+                _count("reference", "KERNEL", note)
+            else:
+                _count("reference", "undecided", note)
+
+
+def _segments(tr, period: int):
+    """Gauss-Legendre nodes and weights over the steady period, split at the events."""
+    t0 = float(tr.tau[0])
+    t1 = t0 + 2.0 * math.pi * period
+    cuts = np.unique(np.clip(np.concatenate(([t0], tr.tau, [t1])), t0, t1))
+    xg, wg = np.polynomial.legendre.leggauss(24)
+    nodes, weights = [], []
+    for a, b in zip(cuts[:-1], cuts[1:], strict=True):
+        if b - a <= 0.0:
+            continue
+        sub = max(1, math.ceil((b - a) / 0.05))
+        edges = np.linspace(a, b, sub + 1)
+        for u, v in zip(edges[:-1], edges[1:], strict=True):
+            nodes.append(0.5 * (v - u) * xg + 0.5 * (u + v))
+            weights.append(0.5 * (v - u) * wg)
+    return np.concatenate(nodes), np.concatenate(weights)
+
+
+def check_energy(scene: Scene, r: float, beta: float, design) -> None:
+    """Work of the load = friction + viscous dissipation over the steady period."""
+    tr = trajectory(scene, r, beta)
+    res = tr.result
+    if res is None or not bool(res.converged) or int(res.regime) < 0:
+        _count("energy", "skipped (not converged)")
+        return
+    period = int(res.period)
+    tau, w = _segments(tr, period)
+    x, xd = tr.sample(tau)
+    p = scene.load_vector(r)
+    rC = scene.damping_matrix(r)
+    v = xd @ scene.contact_vector()
+    work = float(np.sum(w * np.cos(tau) * (xd @ p))) / period
+    friction = beta * float(np.sum(w * np.abs(v))) / period
+    viscous = float(np.sum(w * np.einsum("ti,ij,tj->t", xd, rC, xd))) / period
+    # scale: the power the load puts in and takes out over the period
+    scale = max(float(np.sum(w * np.abs(np.cos(tau) * (xd @ p)))) / period, 1e-300)
+    err = abs(work - friction - viscous) / scale
+    d_kernel = float(design[0]) + float(design[1])
+    err2 = abs(d_kernel - friction - viscous) / scale
+    ok = err < 1e-6 and err2 < 1e-6
+    note = None
+    if not ok:
+        note = (
+            f"{describe(scene)} r={r!r} beta={beta!r}: work {work:.9g}, friction {friction:.9g}, "
+            f"viscous {viscous:.9g}, design dissipation {design[0]:.9g} + {design[1]:.9g}"
+        )
+    _count("energy", "agree" if ok else "MISMATCH", note)
+
+
+def check_closed_form(scene: Scene, r: float, rel: float = 1e-2) -> None:
+    """Exact statements: no motion iff beta >= motion bound; continuous below the exact
+    continuous bound (docs/theory.md 3, 4.3)."""
+    mb = float(motion_bound(scene, np.array([r]))[0])
+    bc = float(continuous_bound(scene, np.array([r]), method="exact")[0])
+    betas, want = [], []
+    if math.isfinite(mb) and mb > 0.0:
+        betas += [mb * (1 + rel), mb * (1 - rel)]
+        want += [{regimes.NO_MOTION}, {regimes.STICK_SLIP, regimes.CONTINUOUS}]
+    if math.isfinite(bc) and bc > 0.0:
+        betas.append(bc * (1 - rel))
+        want.append({regimes.CONTINUOUS})
+    if not betas:
+        _count("closed form", "skipped (bound 0 or inf)")
+        return
+    res = classify(scene, np.full(len(betas), r), np.array(betas))
+    for beta, ok_set, code, conv in zip(betas, want, res.regime, res.converged, strict=True):
+        if code < 0 or not conv:
+            _count("closed form", "kernel flagged")
+            continue
+        good = int(code) in ok_set
+        note = None
+        if not good:
+            note = (
+                f"{describe(scene)} r={r!r} beta={beta!r} (motion bound {mb!r}, exact continuous "
+                f"bound {bc!r}): simulator {regimes.ALL_CODES[int(code)]}"
+            )
+        _count("closed form", "agree" if good else "MISMATCH", note)
+
+
+def _variants(scene: Scene, rng: np.random.Generator, beta_max: float):
+    """Scenes that must give the same regime: ``(name, scene, r factor, beta factor)``."""
+    kw = scene.matrices()
+    M, K, load, C = kw["mass"], kw["stiffness"], kw["load"], kw["damping"]
+    base = isinstance(load, tuple)
+    u = np.asarray(load[1] if base else load, dtype=float)
+    n = M.shape[0]
+
+    def make(M2, K2, u2, contact, C2):
+        return Scene.from_matrices(M2, K2, ("base", u2) if base else u2, contact, damping=C2)
+
+    Cd = None if C is None else scene.damping_matrix(1.0)
+    c = min(float(_loguniform(rng, 1e-3, 1e3)), 9e5 / max(beta_max, 1e-300))
+    s = float(_loguniform(rng, 0.1, 10.0))
+    cont = kw["contact"]
+    out = [("as matrices", make(M, K, u, cont, C), 1.0, 1.0)]
+    # units: every force times c (load, springs, inertia, damping, friction); a base
+    # load r^2 M u scales with M
+    Cc = None if Cd is None else c * Cd
+    out.append((f"forces x{c:.3g}", make(c * M, c * K, u if base else c * u, cont, Cc), 1.0, c))
+    # time: the mass unit times 1/s^2, damping 1/s, the frequency ratio times s
+    Cs = None if Cd is None else Cd / s
+    out.append((f"time x{s:.3g}", make(M / s**2, K, u, cont, Cs), s, 1.0))
+    # DOF permutation, load sign and contact direction
+    perm = rng.permutation(n)
+    inv = np.argsort(perm)
+    P = np.eye(n)[perm]
+    if cont[0] == "ground":
+        cont2 = ("ground", int(inv[cont[1]]))
+    else:
+        cont2 = ("between", int(inv[cont[2]]), int(inv[cont[1]]))  # b -> -b
+    Cp = None if Cd is None else P @ Cd @ P.T
+    out.append(("permuted, -p, -b", make(P @ M @ P.T, P @ K @ P.T, -(P @ u), cont2, Cp), 1.0, 1.0))
+    return out
+
+
+def check_units(scene: Scene, pts, regime, rng) -> None:
+    for name, sc, r_f, b_f in _variants(scene, rng, max(p[1] for p in pts)):
+        r = np.array([p[0] for p in pts]) * r_f
+        beta = np.array([p[1] for p in pts]) * b_f
+        res = classify(sc, r, beta)
+        for i, code in enumerate(res.regime):
+            if code < 0 or regime[i] < 0:
+                _count("units", "kernel flagged")
+                continue
+            good = int(code) == int(regime[i])
+            note = None
+            if not good:
+                note = (
+                    f"{describe(scene)} r={pts[i][0]!r} beta={pts[i][1]!r} {name}: "
+                    f"{regimes.ALL_CODES[int(code)]} vs {regimes.ALL_CODES[int(regime[i])]}"
+                )
+            _count("units", "agree" if good else "MISMATCH", note)
+
+
+def check_reduction(scene: Scene, pts, regime, rng) -> None:
+    """A second contact without friction (``beta_ratio`` 0) changes nothing: the
+    first contact of the two-contact scene has the one-contact scene's regime."""
+    kw = scene.matrices()
+    n = scene.dof
+    used = set(kw["contact"][1:]) if kw["contact"][0] == "ground" else set()
+    extra = int(rng.choice([d for d in range(n) if d not in used]))
+    kw["contact"] = [kw["contact"], ("ground", extra)]
+    sc = MultiScene.from_matrices(**kw, beta_ratio=[1.0, 0.0])
+    res = classify(sc, np.array([p[0] for p in pts]), np.array([p[1] for p in pts]))
+    for i in range(len(pts)):
+        a, b = int(res.regime[i][0]), int(regime[i])
+        if a < 0 or b < 0:
+            _count("reduction", "kernel flagged")
+            continue
+        note = None
+        if a != b:
+            note = (
+                f"{describe(scene)} r={pts[i][0]!r} beta={pts[i][1]!r} + frictionless "
+                f"ground {extra}: {regimes.ALL_CODES[a]} vs one contact {regimes.ALL_CODES[b]}"
+            )
+        _count("reduction", "agree" if a == b else "MISMATCH", note)
+
+
+def check_units_multi(scene: MultiScene, pts, regime, rng) -> None:
+    """The contacts listed in another order: the same per-contact regimes."""
+    k = scene.n_contacts
+    order = rng.permutation(k)
+    while k > 1 and np.array_equal(order, np.arange(k)):
+        order = rng.permutation(k)
+    kw = scene.structures[0].kwargs()
+    contacts = [scene.contacts[c] for c in order]
+    kw["contact"] = contacts
+    sc = MultiScene.from_matrices(**kw, beta_ratio=[scene.beta_ratio[c] for c in order])
+    res = classify(sc, np.array([p[0] for p in pts]), np.array([p[1] for p in pts]))
+    for i in range(len(pts)):
+        for c in range(k):
+            a, b = int(res.regime[i][c]), int(regime[i][order[c]])
+            if a < 0 or b < 0:
+                _count("units", "kernel flagged")
+                continue
+            note = None if a == b else f"{describe(scene)} point {pts[i][:2]} contacts reordered"
+            _count("units", "agree" if a == b else "MISMATCH", note)
+
+
+def check_mirror(rng: np.random.Generator) -> None:
+    """Two mirrored wall contacts on a mirror-symmetric fixed-fixed chain with a
+    symmetric load and equal friction: the two contacts share their regime."""
+    n = int(rng.integers(3, 7))
+    kh = _loguniform(rng, 0.1, 10.0, n + 1)
+    kap = 0.5 * (kh + kh[::-1])  # n + 1 springs, mirror-symmetric
+    mh = _loguniform(rng, 0.1, 10.0, n)
+    m = 0.5 * (mh + mh[::-1])
+    K = np.zeros((n, n))
+    for i in range(n + 1):  # spring i joins mass i-1 and mass i (ends to the ground)
+        for a in (i - 1, i):
+            if 0 <= a < n:
+                K[a, a] += kap[i]
+        if 1 <= i < n:
+            K[i - 1, i] = K[i, i - 1] = -kap[i]
+    p = rng.normal(size=n)
+    p = p + p[::-1]
+    j = int(rng.integers(0, n // 2))
+    sc = MultiScene.from_matrices(np.diag(m), K, p, [("ground", j), ("ground", n - 1 - j)])
+    w = np.sqrt(eigh(K, np.diag(m), eigvals_only=True))
+    r = _loguniform(rng, 0.3 * w[0], 1.5 * w[-1], 3)
+    beta = _loguniform(rng, 0.05, 2.0, 3) * np.abs(p).max()
+    res = classify(sc, r, beta)
+    for i in range(r.size):
+        a, b = (int(v) for v in res.regime[i])
+        if a < 0 or b < 0:
+            _count("symmetry", "kernel flagged")
+            continue
+        note = None
+        if a != b:
+            note = f"mirror {n}dof m={m.round(3)} k={kap.round(3)} j={j} r={r[i]!r}"
+            note += f" beta={beta[i]!r}"
+        _count("symmetry", "agree" if a == b else "MISMATCH", note)
+
+
+def _amplitudes(scene: Scene, res) -> np.ndarray:
+    """Half peak-to-peak of the scene's coordinates (relative to the base where the
+    coordinates are)."""
+    if scene.structure is None and scene.contact == "base":
+        return np.asarray(res.amplitude_relative)
+    # a structure: `amplitude` holds its own coordinates, also under a base load
+    # (where they are relative to the supports; docs/benchmarks.md, random audit)
+    return np.asarray(res.amplitude)
+
+
+def check_limits(scene: Scene, r: float) -> None:
+    """beta -> inf: no motion, the held amplitudes; beta -> 0: continuous, free amplitudes."""
+    M = scene.mass_matrix(r)
+    K = scene.stiffness_matrix()
+    rC = scene.damping_matrix(r)
+    p = scene.load_vector(r)
+    b = scene.contact_vector()
+    D = K - M + 1j * rC
+    free = np.linalg.solve(D, p)
+    A = np.block([[D, b[:, None]], [b[None, :], np.zeros((1, 1))]])
+    held = np.linalg.solve(A, np.concatenate((p, [0.0])))[:-1]
+    g = abs(np.linalg.solve(A, np.concatenate((p, [0.0])))[-1])
+    w = free_frequencies(scene)
+    big = 1e3 * max(g, 1e-3)
+    # beta -> 0: far below the continuous bound (the exact one, or the damped one)
+    if scene.damped:
+        from analysis.damped import continuous_bound as damped_bound
+
+        bc = float(np.asarray(damped_bound(scene, np.array([r]), method="exact"))[0])
+    else:
+        bc = float(continuous_bound(scene, np.array([r]), method="exact")[0])
+    small = 1e-4 * min(bc, g)
+    res = classify(scene, np.array([r, r]), np.array([min(big, 9e5), small]), design=True)
+    amp = _amplitudes(scene, res)
+    for i, (want, ref, name) in enumerate(
+        ((regimes.NO_MOTION, held, "beta -> inf"), (regimes.CONTINUOUS, free, "beta -> 0"))
+    ):
+        if i == 1 and (np.min(np.abs(w / r - 1.0)) < 0.05 or not small > 0.0):
+            _count("limits", "skipped (resonance)")
+            continue
+        if res.regime[i] < 0:
+            _count("limits", "kernel flagged")
+            continue
+        scale = max(np.abs(ref).max(), np.abs(free).max(), 1e-300)
+        err = np.abs(amp[i] - np.abs(ref)).max() / scale
+        tol = 1e-6 if i == 0 else 1e-3
+        good = int(res.regime[i]) == want and err < tol
+        note = None
+        if not good:
+            note = (
+                f"{describe(scene)} r={r!r} {name}: {regimes.ALL_CODES[int(res.regime[i])]}, "
+                f"amplitude error {err:.3g} of {scale:.3g}"
+            )
+        _count("limits", "agree" if good else "MISMATCH", note)
+
+
+# ------------------------------------------------------------------------ CLI
+def _toml_value(v) -> str:
+    if isinstance(v, str):
+        return f'"{v}"'
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, list | tuple):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    if isinstance(v, dict):
+        return "{" + ", ".join(f"{k} = {_toml_value(x)}" for k, x in v.items()) + "}"
+    if isinstance(v, float) and not math.isfinite(v):
+        return "nan" if math.isnan(v) else ("inf" if v > 0 else "-inf")
+    return repr(v)
+
+
+def _toml(study: dict, scenes: list[dict]) -> str:
+    lines = ["[study]"] + [f"{k} = {_toml_value(v)}" for k, v in study.items()]
+    for sc in scenes:
+        lines.append("\n[[scene]]")
+        lines += [f"{k} = {_toml_value(v)}" for k, v in sc.items()]
+    return "\n".join(lines) + "\n"
+
+
+def _valid_scenes(rng: np.random.Generator) -> list[dict]:
+    dof = int(rng.integers(2, 5))
+    kind = str(rng.choice(["ground", "base", "mass"]))
+    last = dof - 1 if kind == "mass" else dof
+    one = {
+        "name": "grid",
+        "contact": kind,
+        "dof": dof,
+        "contact_mass": int(rng.integers(1, last + 1)),
+        "gamma": [round(float(v), 6) for v in _loguniform(rng, 0.1, 10.0, dof - 1)],
+        "kappa": [round(float(v), 6) for v in _loguniform(rng, 0.1, 10.0, dof - 1)],
+        "r": {"start": 0.3, "stop": 2.0, "num": 4},
+        "beta": {"start": 0.1, "stop": 1.0, "num": 3},
+    }
+    pts = [[round(float(a), 6), round(float(b), 6)] for a, b in rng.uniform(0.2, 2.0, (3, 2))]
+    two = {
+        "name": "multi",
+        "contact": "ground",
+        "dof": 3,
+        "contact_mass": [1, int(rng.integers(2, 4))],
+        "beta_ratio": [1.0, round(float(rng.uniform(0.3, 1.5)), 6)],
+        "points": pts,
+    }
+    return [one, two]
+
+
+def _in_process(sc: dict) -> np.ndarray:
+    if "points" in sc:
+        scene = MultiScene.chain(
+            sc["contact"], sc["dof"], sc["contact_mass"], beta_ratio=sc["beta_ratio"]
+        )
+        pts = np.array(sc["points"])
+        return np.asarray(classify(scene, pts[:, 0], pts[:, 1], fidelity="fast").regime)
+    scene = Scene(sc["contact"], sc["dof"], sc["contact_mass"], sc["gamma"], sc["kappa"])
+    r = np.linspace(sc["r"]["start"], sc["r"]["stop"], sc["r"]["num"])
+    beta = np.linspace(sc["beta"]["start"], sc["beta"]["stop"], sc["beta"]["num"])
+    rr, bb = np.meshgrid(r, beta)  # dims (beta, r)
+    return np.asarray(classify(scene, rr, bb, fidelity="fast").regime)
+
+
+INVALID: list[tuple[str, object, str, object]] = [
+    # (what the error must name, where: "study" or the scene index, key, value)
+    ("gama", 0, "gama", 1.0),
+    ("fidelty", "study", "fidelty", "fast"),
+    ("gamma", 0, "gamma", -1.0),
+    ("kappa", 0, "kappa", float("nan")),
+    ("contact_mass", 0, "contact_mass", 9),
+    ("contact", 0, "contact", "wall"),
+    ("dof", 0, "dof", 0),
+    ("num", 0, "r", {"start": 0.1, "stop": 2.0, "num": 5_000_000}),
+    ("r", 0, "r", {"start": 2.0, "stop": float("nan"), "num": 3}),
+    ("beta", 0, "beta", {"start": -1.0, "stop": 1.0, "num": 3}),
+    ("beta_ratio", 1, "beta_ratio", [1.0, 2.0, 3.0]),
+    ("contact", 1, "contact_mass", [2, 2]),
+    ("points", 1, "points", [[0.5, -0.1]]),
+    ("gamma", 0, "gamma", "big"),
+    ("max_points", "study", "max_points", 10),
+    ("mode", 1, "mode", "trace"),
+    ("gamma", 0, "gamma", [1.0] * 9),
+    ("beta", 0, "beta", {"values": []}),
+    ("r", 0, "r", {"start": 0.1, "stop": float("inf"), "num": 3}),
+    ("contact_mass", 0, "contact_mass", True),
+    ("beta", 0, "beta", {"start": 0.0, "stop": 1e7, "num": 3}),
+    ("points", 1, "points", {"r": [0.5, 0.6], "beta": [0.1]}),
+    ("dof", 0, "dof", 101),
+    ("kappa", 0, "kappa", {"values": [1.0, float("nan")]}),
+    ("r", 0, "r", {"start": 0.1, "stop": 2.0, "num": 0}),
+]
+
+
+def check_cli(rng: np.random.Generator, tmp: Path, n_invalid: int) -> None:
+    import xarray as xr
+
+    env = dict(os.environ)
+    study_exe = str(Path(sys.executable).with_name("study"))
+    scenes = _valid_scenes(rng)
+    path = tmp / "valid.toml"
+    path.write_text(_toml({"name": "audit", "fidelity": "fast"}, scenes))
+    out = tmp / "valid.nc"
+    proc = subprocess.run(
+        [study_exe, "run", str(path), "-o", str(out), "--workers", "1", "--quiet"],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=600,
+    )
+    if proc.returncode != 0:
+        _count("cli valid", "MISMATCH", f"study run exit {proc.returncode}: {proc.stderr[-300:]}")
+    else:
+        tree = xr.open_datatree(out)
+        for sc in scenes:
+            ds = tree[sc["name"]].to_dataset()
+            with xr.open_dataset(out, group=sc["name"]) as ds2:
+                same = np.array_equal(ds.regime.values, ds2.regime.values)
+            want = _in_process(sc)
+            order = ("point", "contact") if "points" in sc else ("beta", "r")
+            got = ds.regime.transpose(*order).values
+            good = same and got.shape == want.shape and np.array_equal(got, want)
+            note = None
+            if not good:
+                note = f"scene {sc['name']}: file {got.tolist()} vs classify {want.tolist()}"
+            _count("cli valid", "agree" if good else "MISMATCH", note)
+        tree.close()
+    picks = rng.choice(len(INVALID), size=min(n_invalid, len(INVALID)), replace=False)
+    for idx in picks:
+        field, where, key, value = INVALID[int(idx)]
+        bad = [dict(sc) for sc in _valid_scenes(rng)]
+        study = {"name": "bad", "fidelity": "fast"}
+        (study if where == "study" else bad[int(where)])[key] = value
+        p = tmp / f"bad_{idx}.toml"
+        p.write_text(_toml(study, bad))
+        o = tmp / f"bad_{idx}.nc"
+        proc = subprocess.run(
+            [study_exe, "run", str(p), "-o", str(o), "--workers", "1", "--quiet"],
+            capture_output=True,
+            text=True,
+            env=env,
+            timeout=300,
+        )
+        lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
+        leftovers = [f.name for f in tmp.iterdir() if f.name.startswith(f"bad_{idx}.nc")]
+        good = (
+            proc.returncode == 2
+            and len(lines) == 1
+            and field in lines[0]
+            and "Traceback" not in proc.stderr
+            and not leftovers
+        )
+        note = None
+        if not good:
+            note = (
+                f"{key} = {value!r}: exit {proc.returncode}, "
+                f"stderr {proc.stderr.strip()[-300:]!r}, files left {leftovers}"
+            )
+        _count("cli invalid", "agree" if good else "MISMATCH", note)
+
+
+# ----------------------------------------------------------------------- main
+def _guarded(check: str, what: str, fn, *args) -> None:
+    """Run one check; an exception of the tool is a finding, never the end of the audit."""
+    try:
+        fn(*args)
+    except Exception as exc:  # noqa: BLE001 - every failure is reported
+        _count(check, "ERROR", f"{what}: {type(exc).__name__}: {exc}")
+
+
+def audit_scene(scene, rng, n_points: int, budget: float) -> None:
+    what = describe(scene)
+    pts = draw_points(rng, scene, n_points)
+    r = np.array([p[0] for p in pts])
+    beta = np.array([p[1] for p in pts])
+    multi = isinstance(scene, MultiScene)
+    try:
+        res = classify(scene, r, beta, design=not multi)
+    except Exception as exc:  # noqa: BLE001
+        _count("simulator", "ERROR", f"{what} points {pts}: {type(exc).__name__}: {exc}")
+        return
+    regime = np.asarray(res.regime)
+    conv = np.asarray(res.converged)
+    for code in np.atleast_1d(regime).ravel():
+        _count("simulator", "settled" if code >= 0 else "flagged")
+    _guarded("reference", what, check_reference, scene, pts, regime, conv, budget)
+    if multi:
+        _guarded("units", what, check_units_multi, scene, pts, regime, rng)
+        return
+    if scene.structure is None:
+        _guarded("matrices", what, check_matrices, scene)
+    _guarded("units", what, check_units, scene, pts, regime, rng)
+    _guarded("reduction", what, check_reduction, scene, pts, regime, rng)
+    i = int(rng.integers(len(pts)))
+    design_d = (res.dissipation[i], res.dissipation_viscous[i])
+    _guarded("energy", what, check_energy, scene, float(r[i]), float(beta[i]), design_d)
+    if not scene.damped:
+        _guarded("closed form", what, check_closed_form, scene, float(r[i]))
+    w = free_frequencies(scene)
+    for _ in range(20):  # beta -> 0 needs an r away from the free resonances
+        r_lim = float(_loguniform(rng, 0.2 * w[0], 1.5 * w[-1]))
+        if np.min(np.abs(w / r_lim - 1.0)) >= 0.05:
+            break
+    _guarded("limits", what, check_limits, scene, r_lim)
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--cases", type=int, default=6, help="random scenes (default 6)")
+    ap.add_argument("--points", type=int, default=4, help="points per scene (default 4)")
+    ap.add_argument("--ref-seconds", type=float, default=90.0, help="CPU budget of the references")
+    ap.add_argument("--invalid", type=int, default=4, help="invalid study files (default 4)")
+    ap.add_argument("--no-cli", action="store_true", help="skip the study run checks")
+    ap.add_argument("--verbose", action="store_true", help="print every scene")
+    args = ap.parse_args(argv)
+    rng = np.random.default_rng(args.seed)
+    start = time.process_time()
+    budget = start + args.ref_seconds
+    draws = (draw_chain, draw_damped, draw_multi, draw_chain, lambda g: draw_beam(g, 1))
+    for case in range(args.cases):
+        while True:  # a draw the door refuses (e.g. a tip load on a pinned end) is redrawn
+            try:
+                scene = draws[case % len(draws)](rng)
+                break
+            except ValueError as exc:
+                COUNTS["draws refused"]["checked"] += 1
+                if args.verbose:
+                    print(f"case {case}: redrawn ({exc})", flush=True)
+        WHERE["case"] = str(case)
+        if args.verbose:
+            print(f"case {case}: {describe(scene)}", flush=True)
+        audit_scene(scene, np.random.default_rng([args.seed, case]), args.points, budget)
+    WHERE["case"] = "mirror"
+    _guarded("symmetry", "mirror", check_mirror, np.random.default_rng([args.seed, 999]))
+    if not args.no_cli:
+        WHERE["case"] = "cli"
+        with tempfile.TemporaryDirectory() as tmp:
+            cli_rng = np.random.default_rng([args.seed, 1000])
+            _guarded("cli valid", "study run", check_cli, cli_rng, Path(tmp), args.invalid)
+    cpu = time.process_time() - start
+    outcomes = sorted({o for c in COUNTS.values() for o in c if o != "checked"})
+    print(f"\naudit_random --seed {args.seed} --cases {args.cases} --points {args.points}")
+    print(f"CPU {cpu:.1f} s (this process; study run subprocesses not counted)\n")
+    head = ["check", "checked", *outcomes]
+    rows = [
+        [name, str(c["checked"]), *(str(c.get(o, 0)) for o in outcomes)]
+        for name, c in COUNTS.items()
+    ]
+    widths = [max(len(x) for x in col) for col in zip(head, *rows, strict=True)]
+    print("| " + " | ".join(h.ljust(w) for h, w in zip(head, widths, strict=True)) + " |")
+    print("|" + "|".join("-" * (w + 2) for w in widths) + "|")
+    for row in rows:
+        print("| " + " | ".join(x.ljust(w) for x, w in zip(row, widths, strict=True)) + " |")
+    if FINDINGS:
+        print("\nfindings:")
+        for f in FINDINGS:
+            print(" -", f)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,153 @@
+"""Regressions found by the seeded random audit (benchmarks/audit_random.py).
+
+Each test is a few points of a scene nobody wrote down, checked against an exact
+statement of docs/theory.md; each failed before its fix.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from analysis.closed_form import motion_bound
+from tasks import Scene, classify, regimes
+from tasks.scene import CONFIGURATIONS
+
+
+@pytest.mark.parametrize(
+    ("scene", "r"),
+    [
+        # audit_random --seed 1, case 0: a base-fixed wall far above the natural
+        # frequencies of its chain (r = 112, ratios from 1e-3 to 5e2)
+        (
+            Scene(
+                "base",
+                5,
+                4,
+                gamma=[0.00733, 492.0, 0.0743, 0.347],
+                kappa=[92.5, 0.285, 1.98, 0.00146],
+            ),
+            112.38673645632875,
+        ),
+        # the same in one DOF: a ground wall at r = 30 (motion bound 1, Sect. 2.3)
+        (Scene("ground", 1), 30.0),
+    ],
+)
+def test_stick_slip_below_the_motion_bound_at_high_r(scene, r):
+    """Below the motion bound the held state breaks |g| <= beta, so the contact moves
+    (docs/theory.md 3-4.2: no motion iff beta >= the bound): 1 % and 0.5 % below it
+    the steady state is stick-slip. The creep threshold used the static compliance
+    b^T K^-1 b; far above the natural frequencies the contact's compliance is the
+    inertial one, r^2 smaller, and the genuine slips (about (1 - beta / bound)^2 of
+    the inertial deflection) fell below it: labelled no motion."""
+    mb = float(motion_bound(scene, np.array([r]))[0])
+    beta = mb * np.array([0.99, 0.995, 1.01])
+    res = classify(scene, np.full(3, r), beta)
+    assert res.converged.all()
+    assert res.regime.tolist() == [regimes.STICK_SLIP, regimes.STICK_SLIP, regimes.NO_MOTION]
+    assert (res.slip_amplitude[:2] > 0.0).all()
+
+
+def _frictionless_partner(r: float):
+    """A 2DOF ground chain with walls on both masses, the second without friction
+    (beta_ratio 0): the one-contact scene, and its motion bound at ``r``."""
+    from tasks.multicontact import MultiScene
+
+    mb = float(motion_bound(Scene("ground", 2, 1), np.array([r]))[0])
+    return MultiScene.chain("ground", 2, [1, 2], beta_ratio=[1.0, 0.0]), mb
+
+
+def test_several_contacts_creep_threshold_at_high_r():
+    """The same rule for several contacts (docs/contacts.md 4): a partner without
+    friction leaves the one-contact scene, so 1 % below its motion bound contact 0
+    sticks and slips (the simulator took the static compliance: no motion)."""
+    r = 100.0
+    scene, mb = _frictionless_partner(r)
+    res = classify(scene, np.full(2, r), mb * np.array([0.99, 1.01]))
+    assert res.converged.all()
+    assert res.regime[:, 0].tolist() == [regimes.STICK_SLIP, regimes.NO_MOTION]
+
+
+def test_reference_with_a_frictionless_contact():
+    """The scipy reference of several contacts (tasks.multicontact.reference) on a
+    contact with beta_ratio 0 whose velocity reaches zero: it raised KeyError (the
+    contact was left out of both the candidates and the sliding set), and its creep
+    threshold took the static compliance (no motion 1 % below the bound at r = 100)."""
+    from tasks.multicontact.reference import reference_point
+
+    r = 100.0
+    scene, mb = _frictionless_partner(r)
+    ref, _, ok = reference_point(scene, r, 0.99 * mb)
+    assert ok and int(ref[0]) == regimes.STICK_SLIP
+    ref, _, ok = reference_point(scene, r, 1.01 * mb)
+    assert ok and int(ref[0]) == regimes.NO_MOTION
+
+
+def _base_copy(scene: Scene, u) -> Scene:
+    """The same chain given as matrices under a base load with influence vector u."""
+    m = scene.matrices()
+    return Scene.from_matrices(m["mass"], m["stiffness"], ("base", u), m["contact"])
+
+
+# audit_random --seed 4, case 1: a structure under a base load had its absolute and
+# relative amplitudes swapped (the frames were chosen by the contact type, not the load)
+_R = np.array([0.6, 1.4, 2.5, 0.6])
+_BETA = np.array([0.3, 0.3, 0.05, 0.0])
+
+
+def test_a_base_load_structure_reports_the_frames_of_the_same_chain():
+    chain = CONFIGURATIONS["2dof_base_m1"]
+    given = classify(chain, _R, _BETA, design=True)
+    copy = classify(_base_copy(chain, np.ones(chain.dof)), _R, _BETA, design=True)
+    np.testing.assert_array_equal(copy.regime, given.regime)
+    # absolute and relative differ (the base moves), and each equals the chain's
+    assert np.all(np.abs(given.amplitude - given.amplitude_relative) > 1e-6)
+    np.testing.assert_allclose(copy.amplitude, given.amplitude, rtol=1e-9)
+    np.testing.assert_allclose(copy.amplitude_relative, given.amplitude_relative, rtol=1e-9)
+
+
+def test_a_support_mode_other_than_a_translation_leaves_the_absolute_amplitude_unknown():
+    chain = CONFIGURATIONS["2dof_base_m1"]
+    res = classify(_base_copy(chain, [1.0, 0.0]), _R, _BETA, design=True)
+    # a coordinate the support motion does not move: absolute = relative
+    np.testing.assert_array_equal(res.amplitude[..., 1], res.amplitude_relative[..., 1])
+    assert np.all(np.isfinite(res.amplitude[..., 0]))
+    half = classify(_base_copy(chain, [1.0, 0.5]), _R, _BETA, design=True)
+    assert np.all(np.isnan(half.amplitude[..., 1]))  # not computed, never guessed
+    assert np.all(np.isfinite(half.amplitude_relative))
+
+
+def test_a_slow_modes_conjugate_pair_is_not_taken_for_a_repeated_eigenvalue():
+    # audit_random --seed 6, case 1: a 6DOF chain with Rayleigh damping whose damped
+    # eigenvalues span 1e-3 to 2e5 (an overdamped fast mode); the slowest mode's
+    # conjugate pair (+-0.0013i) lies 1.3e-8 of the largest |nu| apart, and a gap
+    # relative to the largest |nu| refused the scene as "repeated"
+    chain = Scene(
+        "base",
+        6,
+        1,
+        gamma=[
+            126.22578517237478,
+            0.0011307714459180649,
+            745.7707968613269,
+            91.62587919030989,
+            51.43583043700024,
+        ],
+        kappa=[
+            0.0019431258171163702,
+            0.017564492145245515,
+            125.65905419717217,
+            0.39352186694113256,
+            5.818453960199533,
+        ],
+    )
+    kw = chain.matrices()
+    kw["damping"] = ("rayleigh", 3.1289366431586233e-06, 1.7780685705711057)
+    kw["load"] = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0]  # a force on the light mass (all modes loaded)
+    scene = Scene.from_matrices(**kw)
+    res = classify(
+        scene,
+        np.array([2.3892124126833143, 1.486757303659047]),
+        np.array([0.30936324590984304, 0.010297481414332631]),
+    )
+    assert np.all(res.regime >= 0) and np.all(res.converged)
