@@ -85,6 +85,18 @@ result file) with their start and seconds:
 
     python benchmarks/bench_adaptive.py --timeline --scenes fig04:gamma1_kappa1 --code ../main
 
+``--tasks``: what the adaptive study's own tasks cost against the dense grid, in this
+process (no Dask between them): each ``--cluster`` scene's adaptive study is run
+once in this process to collect its tiles and point lists (the verification
+sample), which are then computed again (the least of ``--repeat`` runs, at least
+2), and the dense grid of the same resolution as chunks of 10 r rows; CPU seconds
+of each, and of the compiled simulator (``tasks.kernel.run_points_given``) within
+them, and the ratios dense / adaptive: that of the tasks, the most a study on
+any cluster can reach while its client and Dask cost nothing, and that of the
+simulator alone, the most it can reach with no Python in the tasks either:
+
+    python benchmarks/bench_adaptive.py --tasks --scenes fig04:gamma1_kappa1
+
 ``--example N``: ``study run examples/adaptive.toml`` through the CLI N times
 (a fresh process each, the compiled kernel cached; small studies compute in
 threads of that process, :func:`study.drive.local_threads`), wall and CPU seconds:
@@ -650,6 +662,80 @@ def _module(code: Path, path: str):
     return module
 
 
+def tasks_main(args, n_r: int, n_beta: int) -> int:
+    """``--tasks``: the adaptive study's tiles and point lists against the dense grid's
+    chunks, CPU seconds in this process, in all and in the compiled simulator."""
+    import tempfile
+
+    import study.compute as compute
+    import study.tiles as tiles
+    from study.cli import main as study_main
+    from tasks import kernel
+
+    spent = [0.0]
+    simulator = kernel.run_points_given
+
+    def timed(*a):  # the simulator's CPU seconds (tasks.classifier calls kernel.<name>)
+        t0 = time.process_time()
+        try:
+            return simulator(*a)
+        finally:
+            spent[0] += time.process_time() - t0
+
+    def cpu(run, units: list) -> tuple[float, float]:
+        spent[0] = 0.0
+        t0 = time.process_time()
+        for unit in units:
+            run(unit)
+        return time.process_time() - t0, spent[0]
+
+    load = Path("/proc/loadavg").read_text().split()[0] if Path("/proc/loadavg").exists() else "?"
+    print(
+        f"the adaptive study's tasks against the dense grid, {n_r} x {n_beta}, one process, "
+        f"fidelity {args.fidelity}, coarse_step {args.coarse_step}, hint exact; CPU s "
+        f"(of which the compiled simulator); load average {load} at the start"
+    )
+    print(
+        "| scene | dense grid | tiles | point lists (the sample) | dense / tasks "
+        "| dense / simulator in the tasks |"
+    )
+    print("|---|---|---|---|---|---|")
+    tile_chunk, point_list = tiles.tile_chunk, compute.KINDS["adaptive"]
+    for sc in cluster_scenes(args.scenes):
+        units: dict[str, list] = {"tiles": [], "lists": []}
+        tiles.tile_chunk = lambda task, u=units: u["tiles"].append(task) or tile_chunk(task)
+        compute.KINDS["adaptive"] = lambda task, u=units: (
+            u["lists"].append(task) or point_list(task)
+        )
+        mode = ADAPTIVE_MODE.format(step=args.coarse_step)
+        text = STUDY.format(fidelity=args.fidelity, mode=mode, n_r=n_r, n_beta=n_beta, **sc)
+        with tempfile.TemporaryDirectory() as tmp:
+            (Path(tmp) / "s.toml").write_text(text)
+            study_main(["run", str(Path(tmp) / "s.toml"), "-o", str(Path(tmp) / "s.nc"), "--quiet"])
+        tiles.tile_chunk, compute.KINDS["adaptive"] = tile_chunk, point_list
+        kernel.run_points_given = timed
+        try:
+            first = units["tiles"][0] if units["tiles"] else units["lists"][0]
+            grid = {"kind": "grid", "scene": first["scene"], "settings": first["settings"]}
+            r = np.linspace(sc["r_start"], sc["r_stop"], n_r)
+            beta = np.linspace(sc["b_start"], sc["b_stop"], n_beta)
+            blocks = [grid | {"r": r[i : i + 10], "beta": beta} for i in range(0, n_r, 10)]
+            dense = cpu(compute.compute_chunk, blocks)
+            runs = max(2, args.repeat)
+            tile = min(cpu(tiles.tile_chunk, units["tiles"]) for _ in range(runs))
+            lists = min(cpu(point_list, units["lists"]) for _ in range(runs))
+        finally:
+            kernel.run_points_given = simulator
+        total, inner = tile[0] + lists[0], tile[1] + lists[1]
+        print(
+            f"| {sc['name']} | {dense[0]:.2f} ({dense[1]:.2f}) | {tile[0]:.3f} ({tile[1]:.3f}) "
+            f"| {lists[0]:.3f} ({lists[1]:.3f}) | {dense[0] / total:.1f} "
+            f"| {dense[0] / inner:.1f} |",
+            flush=True,
+        )
+    return 0
+
+
 def example_main(args) -> int:
     """``study run examples/adaptive.toml`` (the CLI, a fresh process each time, the
     compiled kernel in its cache): wall seconds and the CPU seconds of the process."""
@@ -719,6 +805,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--tile-sample", action="store_true", help="--cluster: the sample inside the tiles too"
     )
+    ap.add_argument("--tasks", action="store_true", help="the adaptive tasks' CPU, one process")
     ap.add_argument("--example", type=int, default=0, help="time the CLI on the example N times")
     ap.add_argument(
         "--code",
@@ -734,6 +821,8 @@ def main(argv: list[str] | None = None) -> int:
         return example_main(args)
     if args.replay:
         return replay_main(args, n_r, n_beta)
+    if args.tasks:
+        return tasks_main(args, n_r, n_beta)
     if args.timeline:
         return timeline_main(args, n_r, n_beta)
     if args.cluster:

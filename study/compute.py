@@ -94,14 +94,22 @@ def _tile(task: dict) -> dict:
 
 
 def _classify(
-    scene: dict, settings: dict, r: np.ndarray, beta: np.ndarray, given: tuple | None = None
+    scene: dict | Scene,
+    settings: dict,
+    r: np.ndarray,
+    beta: np.ndarray,
+    given: tuple | None = None,
 ) -> dict:
+    """Classify the points ``(r, beta)`` of ``scene`` (its dict; with ``given``, also a
+    built one-contact :class:`~tasks.scene.Scene`: a tile classifies a round of points
+    per refinement level and builds it once) into the unit's fields."""
     from tasks import classify
 
     if given is not None:  # one contact, seeded by solved points too: their orbits back
         from tasks.classifier import classify_given
 
-        res, final = classify_given(Scene.from_dict(scene), r, beta, given, **settings)
+        built = scene if isinstance(scene, Scene) else Scene.from_dict(scene)
+        res, final = classify_given(built, r, beta, given, **settings)
         fields = point_fields(settings)
         out = {name: np.asarray(getattr(res, name), dtype=dt) for name, dt in fields.items()}
         return out | {"final": final}

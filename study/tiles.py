@@ -202,9 +202,10 @@ def tile_chunk(task: dict) -> dict[str, np.ndarray]:
     ``final`` (their orbits, not saved) and, with ``verify``, ``verify`` (the points
     simulated as candidates of the sample)."""
     from study.compute import _classify
+    from tasks.scene import Scene
     from tasks.tiles import refine_tile_cells
 
-    scene, settings = task["scene"], task["settings"]
+    scene, settings = Scene.from_dict(task["scene"]), task["settings"]  # built once
 
     def simulate(r: np.ndarray, beta: np.ndarray, given: tuple) -> dict[str, np.ndarray]:
         return _classify(scene, settings, r, beta, given)

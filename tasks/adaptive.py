@@ -481,10 +481,8 @@ class Refinement:
     def _leaves_hit(self, boxes: np.ndarray) -> np.ndarray:
         """Which of the cells ``boxes`` hold a point of the last accepted results (nonzero)."""
         pi, pj = self._last_new
-        i0, i1, j0, j1 = (c[:, None] for c in boxes.T)
         if boxes.shape[0] * pi.size <= _BROADCAST_LIMIT:  # few new points: compare directly
-            inside = (i0 <= pi) & (pi <= i1) & (j0 <= pj) & (pj <= j1)
-            return inside.any(axis=1)
+            return cells.holding(boxes, pi, pj)
         # many: a summed-area table of the new points, on their own rows and columns
         ui, ci = np.unique(pi, return_inverse=True)
         uj, cj = np.unique(pj, return_inverse=True)

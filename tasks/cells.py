@@ -18,6 +18,7 @@ cells and keys. No Dask, no files.
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 
 def box_points(boxes: np.ndarray, n_b: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -47,12 +48,30 @@ def uniform(boxes: np.ndarray, key: np.ndarray, sim: np.ndarray, n_b: int) -> np
     :meth:`~tasks.adaptive.Refinement._uniform`."""
     if not boxes.shape[0]:
         return np.zeros(0, dtype=bool)
-    start, _, flat = box_points(boxes, n_b)
-    s, k = sim[flat], key[flat]
-    big = np.iinfo(np.int64).max
-    lo = np.minimum.reduceat(np.where(s, k, big), start)
-    hi = np.maximum.reduceat(np.where(s, k, -big), start)
-    return hi <= lo
+    boxes = np.ascontiguousarray(boxes, dtype=np.int64)
+    return _uniform(boxes, np.asarray(key, dtype=np.int64), np.asarray(sim, dtype=np.bool_), n_b)
+
+
+@njit(cache=True, nogil=True)
+def _uniform(boxes, key, sim, n_b):  # pragma: no cover - compiled
+    """:func:`uniform`, cell by cell, each read until its first disagreeing point (the
+    cells of a round hold up to (coarse step + 1)^2 points each: a numpy pass over all
+    of them cost a tile about as much as the rest of its round's refinement)."""
+    out = np.ones(boxes.shape[0], dtype=np.bool_)
+    for c in range(boxes.shape[0]):
+        seen = False
+        first = 0
+        for i in range(boxes[c, 0], boxes[c, 1] + 1):
+            for p in range(i * n_b + boxes[c, 2], i * n_b + boxes[c, 3] + 1):
+                if sim[p]:
+                    if not seen:
+                        seen, first = True, key[p]
+                    elif key[p] != first:
+                        out[c] = False
+                        break
+            if not out[c]:
+                break
+    return out
 
 
 def strips(boxes: np.ndarray) -> np.ndarray:
@@ -248,3 +267,26 @@ def unique_boxes(boxes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     packed = ((boxes[:, 0] << 45) | (boxes[:, 1] << 30)) | ((boxes[:, 2] << 15) | boxes[:, 3])
     _, at = np.unique(packed, return_index=True)
     return boxes[at], at
+
+
+def holding(boxes: np.ndarray, pi: np.ndarray, pj: np.ndarray) -> np.ndarray:
+    """Which cells hold at least one of the points ``(pi, pj)`` (grid indices, ends of a
+    cell included): :meth:`tasks.adaptive.Refinement._leaves_hit` where cells times
+    points are few (each cell read until its first point, no temporaries)."""
+    return _holding(
+        np.ascontiguousarray(boxes, dtype=np.int64),
+        np.ascontiguousarray(pi, dtype=np.int64),
+        np.ascontiguousarray(pj, dtype=np.int64),
+    )
+
+
+@njit(cache=True, nogil=True)
+def _holding(boxes, pi, pj):  # pragma: no cover - compiled
+    out = np.zeros(boxes.shape[0], dtype=np.bool_)
+    for c in range(boxes.shape[0]):
+        i0, i1, j0, j1 = boxes[c, 0], boxes[c, 1], boxes[c, 2], boxes[c, 3]
+        for p in range(pi.size):
+            if i0 <= pi[p] <= i1 and j0 <= pj[p] <= j1:
+                out[c] = True
+                break
+    return out

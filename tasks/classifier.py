@@ -177,7 +177,7 @@ def _classify(scene, r, beta, fidelity, settings, given, from_given=False):
         raise ValueError(f"scene: must be a tasks.Scene, got {type(scene).__name__}")
     if not isinstance(fidelity, str):
         raise ValueError(f"fidelity: must be a string, got {fidelity!r}")
-    resolved = resolve(fidelity, **settings)
+    resolved = _resolve(fidelity, settings)
     r_arr, beta_arr = np.broadcast_arrays(
         check_points("r", r, *R_RANGE, open_lower=False),
         check_points("beta", beta, 0.0, BETA_MAX, open_lower=False),
@@ -215,6 +215,35 @@ def _classify(scene, r, beta, fidelity, settings, given, from_given=False):
         for c in codes[1:]
     ]
     return result_from_kernel(out, shape, design, base_influence(scene), others, codes), final
+
+
+#: Settings resolved before, by preset and overrides (:func:`_resolve`).
+_RESOLVED: dict[tuple, Settings] = {}
+
+
+def _resolve(fidelity: str, settings: dict) -> Settings:
+    """:func:`tasks.fidelity.resolve` of ``fidelity`` and the overrides ``settings``, each
+    combination checked once per process (an adaptive map's tile classifies a round of
+    points per refinement level with the same settings; the check cost a tenth of a
+    millisecond a call). :class:`~tasks.fidelity.Settings` is frozen, so it is shared."""
+    try:
+        # with each value's type: 1, 1.0 and True are equal keys, not equal overrides
+        key = (fidelity, *((k, type(v), _frozen(v)) for k, v in settings.items()))
+        hash(key)
+    except TypeError:  # an unhashable override: checked (and refused) as it is
+        return resolve(fidelity, **settings)
+    got = _RESOLVED.get(key)  # (threads of one process may share it: no check-then-read)
+    if got is None:
+        got = resolve(fidelity, **settings)
+        if len(_RESOLVED) >= 64:
+            _RESOLVED.clear()
+        _RESOLVED[key] = got
+    return got
+
+
+def _frozen(value: object) -> object:
+    """A list override as a tuple of (type, item) pairs (hashable, types kept)."""
+    return tuple((type(v), v) for v in value) if isinstance(value, list) else value
 
 
 def start_codes(settings: Settings) -> list[int]:

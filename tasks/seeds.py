@@ -21,6 +21,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 from scipy.spatial import cKDTree
 
 from tasks.kernel.layout import OUT_ASYMPTOTIC, OUT_CONVERGED, OUT_PERIOD, OUT_REGIME
@@ -96,10 +97,22 @@ def warm_seeds(
     index = index[near]  # the neighbours' indices in the call (or given), nearest first
     earlier = (index >= 0) & (index < live[:, None])
     ok = (dist <= reach) & (earlier | (index <= -2))
-    first = np.argsort(~ok, axis=1, kind="stable")[:, :candidates]  # kept, nearest first
-    taken = np.where(np.take_along_axis(ok, first, 1), np.take_along_axis(index, first, 1), -1)
+    taken = first_true(ok, index, candidates)  # kept, nearest first
     seeds[live, : taken.shape[1]] = taken
     return seeds
+
+
+def first_true(ok: np.ndarray, values: np.ndarray, k: int) -> np.ndarray:
+    """The first ``k`` entries of each row of ``values`` where ``ok`` holds, in their order,
+    padded with -1: ``(rows, min(k, columns))``. The stable argsort of ``~ok`` taken
+    without sorting (a row's rank of each kept entry from a cumulative sum)."""
+    rows, cols = ok.shape
+    k = min(int(k), cols)
+    out = np.full((rows, k), -1, dtype=np.int64)
+    rank = np.cumsum(ok, axis=1) - 1
+    put = ok & (rank < k)
+    out[np.nonzero(put)[0], rank[put]] = values[put]
+    return out
 
 
 def can_seed(out: np.ndarray, beta: np.ndarray) -> np.ndarray:
@@ -141,11 +154,26 @@ def grid_neighbours(
     ``idx`` are flat indices on a grid of ``shape``; ``row`` maps every flat index
     to the row of its solved orbit (-1: none); ``offsets`` from :func:`grid_offsets`,
     nearest first."""
-    i, j = np.unravel_index(np.asarray(idx, dtype=np.int64), shape)
-    ii = i[:, None] + offsets[None, :, 0]
-    jj = j[:, None] + offsets[None, :, 1]
-    inside = (ii >= 0) & (ii < shape[0]) & (jj >= 0) & (jj < shape[1])
-    flat = np.where(inside, ii * shape[1] + jj, 0)
-    found = np.where(inside, row[flat], -1)
-    first = np.argsort(found < 0, axis=1, kind="stable")[:, :k]
-    return np.take_along_axis(found, first, 1)
+    idx = np.ascontiguousarray(idx, dtype=np.int64).ravel()
+    offsets = np.ascontiguousarray(offsets, dtype=np.int64)
+    k = min(int(k), offsets.shape[0])
+    return _grid_neighbours(idx, int(shape[0]), int(shape[1]), row, offsets, k)
+
+
+@njit(cache=True, nogil=True)
+def _grid_neighbours(idx, n_r, n_b, row, offsets, k):  # pragma: no cover - compiled
+    """:func:`grid_neighbours`, point by point: the offsets in order until ``k`` are found
+    (a numpy pass over every offset of every point cost a tile's round as much as the
+    neighbour search of its seeds)."""
+    out = np.full((idx.size, k), -1, dtype=np.int64)
+    for p in range(idx.size):
+        i, j = idx[p] // n_b, idx[p] % n_b
+        n = 0
+        for o in range(offsets.shape[0]):
+            ii, jj = i + offsets[o, 0], j + offsets[o, 1]
+            if 0 <= ii < n_r and 0 <= jj < n_b and row[ii * n_b + jj] >= 0:
+                out[p, n] = row[ii * n_b + jj]
+                n += 1
+                if n == k:
+                    break
+    return out

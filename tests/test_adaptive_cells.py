@@ -126,3 +126,16 @@ def test_nearest_corner_sources_equal_painting_cell_by_cell(seed):
     np.testing.assert_array_equal(got_j, want_j[covered])
     got_i, _ = cells.nearest_corner_sources(boxes, todo, SHAPE)  # a point in no cell
     assert (got_i == -1).all()
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_cells_holding_points_equal_the_broadcast_comparison(seed):
+    """:func:`tasks.cells.holding` (the compiled path of ``Refinement._leaves_hit``)
+    against the comparison of every cell with every point."""
+    rng = np.random.default_rng(seed)
+    boxes = _boxes(seed)
+    pi, pj = rng.integers(0, SHAPE[0], 40), rng.integers(0, SHAPE[1], 40)
+    i0, i1, j0, j1 = (c[:, None] for c in boxes.T)
+    want = ((i0 <= pi) & (pi <= i1) & (j0 <= pj) & (pj <= j1)).any(axis=1)
+    assert want.any() and not want.all()
+    np.testing.assert_array_equal(cells.holding(boxes, pi, pj), want)

@@ -246,6 +246,19 @@ def test_api_refuses_wrong_types_and_ranges(call, field):
             call()
 
 
+def test_settings_checked_once_still_refuse_equal_values_of_another_type():
+    """classify resolves each settings combination once per process: 1, 1.0 and True are
+    equal (and hash alike) but not the same override."""
+    scene = Scene("ground", 2)
+    classify(scene, 1.0, 0.3, seed=1)
+    classify(scene, 1.0, 0.3, shooting=True)
+    assert classify(scene, 1.0, 0.3, seed=1.0).regime.shape == ()  # an integer still
+    with pytest.raises(ValueError, match="seed"):
+        classify(scene, 1.0, 0.3, seed=True)
+    with pytest.raises(ValueError, match="shooting"):
+        classify(scene, 1.0, 0.3, shooting=1)
+
+
 def test_closed_forms_never_warn_over_their_range():
     """From r = 1e-100 to 1e100 the bounds are finite or inf, never NaN, and silent."""
     r = np.logspace(-100, 100, 101)

@@ -10,7 +10,7 @@ import numpy as np
 from tasks import Scene, classify, regimes
 from tasks.classifier import classify_given
 from tasks.result import DESIGN_FIELDS, FIELDS
-from tasks.seeds import grid_neighbours, grid_offsets, warm_seeds
+from tasks.seeds import first_true, grid_neighbours, grid_offsets, warm_seeds
 
 #: Fields that agree only to the polish between differently seeded searches.
 CONTINUOUS_FIELDS = ("slip_amplitude", "stick_fraction", *DESIGN_FIELDS)
@@ -50,6 +50,18 @@ def test_grid_neighbours_are_the_nearest_solved_points():
     assert near[2, 0] == 3 and near[2, 1] in (0, 1)
     far = grid_neighbours(np.array([2 * 9 + 5]), shape, row, off, 2)
     assert far[0, 0] == 1 and far[0, 1] == -1  # (4, 6) at (2, 1); no other on the offsets
+
+
+def test_first_true_keeps_the_stable_argsort_order():
+    """The first k kept entries of each row, padded with -1: what a stable argsort of
+    the refused entries selects (the formula it replaced, an independent truth)."""
+    rng = np.random.default_rng(3)
+    for cols, k in ((16, 4), (16, 8), (3, 8), (120, 4)):
+        ok = rng.random((200, cols)) < 0.3
+        values = rng.integers(-9, 1000, (200, cols))
+        first = np.argsort(~ok, axis=1, kind="stable")[:, :k]
+        want = np.where(np.take_along_axis(ok, first, 1), np.take_along_axis(values, first, 1), -1)
+        np.testing.assert_array_equal(first_true(ok, values, k), want)
 
 
 def test_given_orbits_seed_the_same_labels_and_fields():
