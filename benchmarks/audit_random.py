@@ -362,6 +362,11 @@ def _reference_one(scene, multi, i, r, beta, tag, res_regime, res_conv) -> None:
             if beta >= mb * (1.0 + 1e-6):
                 votes.append("theorem: no_motion")
                 settled = [regimes.NO_MOTION]
+            elif beta <= mb * (1.0 - 1e-6):
+                # below it the held state breaks |g| <= beta: the contact moves, so a
+                # reference's no motion there is its creep threshold, not a regime
+                votes.append("theorem: motion")
+                settled = [v for v in settled if v != regimes.NO_MOTION]
         note = (
             f"{where}: simulator {regimes.ALL_CODES[int(kern[c])]}, reference "
             f"{regimes.ALL_CODES.get(int(ref[c]), ref[c])}, longer references {votes}"
@@ -450,6 +455,13 @@ def check_closed_form(scene: Scene, r: float, rel: float = 1e-2) -> None:
     if not betas:
         _count("closed form", "skipped (bound 0 or inf)")
         return
+    keep = [k for k, b in enumerate(betas) if b <= 9e5]  # BETA_MAX 1e6
+    for _ in range(len(betas) - len(keep)):
+        _count("closed form", "skipped (beta above 9e5)")
+    if not keep:
+        return
+    betas = [betas[k] for k in keep]
+    want = [want[k] for k in keep]
     res = classify(scene, np.full(len(betas), r), np.array(betas))
     for beta, ok_set, code, conv in zip(betas, want, res.regime, res.converged, strict=True):
         if code < 0 or not conv:
@@ -668,6 +680,8 @@ def check_limits(scene: Scene, r: float) -> None:
     else:
         bc = float(continuous_bound(scene, np.array([r]), method="exact")[0])
     small = 1e-4 * min(bc, g)
+    if big > 9e5:  # beyond BETA_MAX: beta 1000 times the held force is not available
+        big = 9e5 if 9e5 >= 1.01 * g else big
     res = classify(scene, np.array([r, r]), np.array([min(big, 9e5), small]), design=True)
     amp = _amplitudes(scene, res)
     for i, (want, ref, name) in enumerate(
@@ -675,6 +689,9 @@ def check_limits(scene: Scene, r: float) -> None:
     ):
         if i == 1 and (np.min(np.abs(w / r - 1.0)) < 0.05 or not small > 0.0):
             _count("limits", "skipped (resonance)")
+            continue
+        if i == 0 and big > 9e5:
+            _count("limits", "skipped (beta above 9e5)")
             continue
         if res.regime[i] < 0:
             _count("limits", "kernel flagged")
