@@ -440,6 +440,39 @@ def check_energy(scene: Scene, r: float, beta: float, design) -> None:
     _count("energy", "agree" if ok else "MISMATCH", note)
 
 
+PERIODIC_RTOL = 1e-6
+"""A converged point's section state must come back after its period to this fraction
+of the motion (the presets' ``section_rtol`` is 1e-5 to 1e-10)."""
+
+
+def check_periodic(scene: Scene, pts, res) -> None:
+    """Every converged point's orbit replayed from its section state
+    (:func:`tasks.trajectory`): after ``period`` cycles the state is back, to
+    ``PERIODIC_RTOL`` of the largest state on the way. A steady state is a periodic
+    orbit; a transient accepted as one shows here (and in the energy balance)."""
+    for i, (r, beta, _) in enumerate(pts):
+        if not bool(res.converged[i]) or int(res.regime[i]) < 0 or beta == 0.0:
+            _count("periodic", "skipped (not converged)")
+            continue
+        tr = trajectory(scene, r, beta)
+        if tr.result is None or not bool(tr.result.converged):
+            _count("periodic", "skipped (not converged)")
+            continue
+        X = np.hstack([tr.x, tr.xd])
+        scale = max(float(np.abs(X).max()), 1e-300)
+        err = float(np.abs(X[-1] - X[0]).max()) / scale
+        good = err <= PERIODIC_RTOL
+        note = None
+        if not good:
+            note = (
+                f"{describe(scene)} r={r!r} beta={beta!r}: "
+                f"{regimes.ALL_CODES[int(tr.result.regime)]} period {int(tr.result.period)} "
+                f"after {int(tr.result.cycles)} cycles, the replayed period moves the "
+                f"section by {err:.3g} of the motion"
+            )
+        _count("periodic", "agree" if good else "MISMATCH", note)
+
+
 def check_closed_form(scene: Scene, r: float, rel: float = 1e-2) -> None:
     """Exact statements: no motion iff beta >= motion bound; continuous below the exact
     continuous bound (docs/theory.md 3, 4.3; damped: docs/structures.md 3.1-3.2, 4.6)."""
@@ -1068,6 +1101,7 @@ def audit_scene(scene, rng, n_points: int, budget: float, extra: bool = False) -
     i = int(rng.integers(len(pts)))
     design_d = (res.dissipation[i], res.dissipation_viscous[i])
     _guarded("energy", what, check_energy, scene, float(r[i]), float(beta[i]), design_d)
+    _guarded("periodic", what, check_periodic, scene, pts, res)
     _guarded("closed form", what, check_closed_form, scene, float(r[i]))
     w = free_frequencies(scene)
     for _ in range(20):  # beta -> 0 needs an r away from the free resonances
