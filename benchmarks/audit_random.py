@@ -312,6 +312,16 @@ def _spread(scene, r: float) -> float:
     return float(free_frequencies(scene)[-1] / r)
 
 
+ROUNDING = 1e-12
+"""A friction force below this fraction of the load (max |p|) is at the rounding of
+the forces it is compared with (a held force found by cancelling O(|p|) terms): the
+regime there is not checked (``skipped (below rounding)``)."""
+
+
+def _below_rounding(scene, r: float, beta: float) -> bool:
+    return beta < ROUNDING * float(np.abs(scene.load_vector(r)).max())
+
+
 REF_CPU = {"used": 0.0}
 """CPU seconds the references took so far (their budget counts them alone: the
 first run's kernel compilation must not use it up)."""
@@ -323,6 +333,9 @@ def check_reference(scene, pts, res_regime, res_conv, budget) -> None:
     for i, (r, beta, tag) in enumerate(pts):
         if _spread(scene, r) > REF_MAX_SPREAD or REF_CPU["used"] > budget:
             _count("reference", "skipped (cost)")
+            continue
+        if _below_rounding(scene, r, beta):
+            _count("reference", "skipped (below rounding)")
             continue
         t0 = time.process_time()
         try:
@@ -491,6 +504,10 @@ def check_closed_form(scene: Scene, r: float, rel: float = 1e-2) -> None:
     keep = [k for k, b in enumerate(betas) if b <= 9e5]  # BETA_MAX 1e6
     for _ in range(len(betas) - len(keep)):
         _count("closed form", "skipped (beta above 9e5)")
+    low = [k for k in keep if _below_rounding(scene, r, betas[k])]
+    for _ in low:
+        _count("closed form", "skipped (below rounding)")
+    keep = [k for k in keep if k not in low]
     if not keep:
         return
     betas = [betas[k] for k in keep]
@@ -579,6 +596,9 @@ def check_reduction(scene: Scene, pts, regime, rng) -> None:
         a, b = int(res.regime[i][0]), int(regime[i])
         if a < 0 or b < 0:
             _count("reduction", "kernel flagged")
+            continue
+        if _below_rounding(scene, pts[i][0], pts[i][1]):
+            _count("reduction", "skipped (below rounding)")
             continue
         note = None
         if a != b:
