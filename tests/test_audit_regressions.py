@@ -151,3 +151,52 @@ def test_a_slow_modes_conjugate_pair_is_not_taken_for_a_repeated_eigenvalue():
         np.array([0.30936324590984304, 0.010297481414332631]),
     )
     assert np.all(res.regime >= 0) and np.all(res.converged)
+
+
+def _audit_module():
+    """benchmarks/audit_random.py, loaded as a module (its checks are tested here: a
+    check that reports a mismatch on a correct simulator hides the real ones)."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / "audit_random.py"
+    spec = importlib.util.spec_from_file_location("audit_random_checks", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_audit_limits_compare_a_base_load_structure_in_its_relative_frame():
+    # audit_random --seed 10, extra 1: a 2DOF chain as matrices under a support motion
+    # with a dashpot; its held and free amplitudes are solved relative to the supports,
+    # which `amplitude_relative` holds (`amplitude` adds u cos tau): the audit read
+    # `amplitude` and reported both limits wrong by about 1
+    audit = _audit_module()
+    M = np.diag([1.0, 2.66486058])
+    K = np.array([[3.8337297, -2.8337297], [-2.8337297, 2.8337297]])
+    C = np.array([[0.01658399, -0.01658399], [-0.01658399, 0.02383474]])
+    scene = Scene.from_matrices(M, K, ("base", np.ones(2)), ("ground", 0), damping=C)
+    audit.check_limits(scene, 0.18702986482726017)
+    assert dict(audit.COUNTS["limits"]) == {"agree": 2, "checked": 2}, audit.FINDINGS
+
+
+def test_audit_energy_quadrature_resolves_the_fast_modes():
+    # audit_random --seed 10, case 1: a 7DOF chain with modal damping at r = 0.015,
+    # its fastest mode 1700 times faster than the load: sub-intervals of 0.05 aliased
+    # it and the load's work came out 7e-6 of its power off the dissipation
+    audit = _audit_module()
+    chain = Scene(
+        "ground",
+        7,
+        2,
+        gamma=[29.7496, 0.00685659, 274.899, 0.0227346, 131.655, 0.0688505],
+        kappa=[659.147, 1.27940, 0.0860691, 0.0494995, 4.31708, 0.100597],
+    )
+    kw = chain.matrices()
+    kw["damping"] = ("modal", 0.00203634)
+    scene = Scene.from_matrices(**kw)
+    r, beta = 0.015146442332665119, 0.3170718535003645
+    res = classify(scene, np.array([r]), np.array([beta]), design=True)
+    design = (res.dissipation[0], res.dissipation_viscous[0])
+    audit.check_energy(scene, r, beta, design)
+    assert dict(audit.COUNTS["energy"]) == {"agree": 1, "checked": 1}, audit.FINDINGS
