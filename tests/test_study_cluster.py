@@ -801,10 +801,10 @@ def test_interrupted_run_resumes_only_missing_chunks(tmp_path, remote, long_refe
             assert proc.poll() is None, "the run ended before the interrupt"
             assert time.monotonic() < deadline, "no chunk was saved"
             time.sleep(0.01)
-        workers = [
+        workers = [  # the worker processes the LocalCluster spawned
             p
             for p in psutil.Process(proc.pid).children(recursive=True)
-            if "resource_tracker" not in " ".join(p.cmdline())
+            if "spawn_main" in " ".join(p.cmdline())
         ]
         assert len(workers) == 2, [p.cmdline() for p in workers]
         for p in workers:
