@@ -28,6 +28,8 @@ constants are compiled in) and of the Python, numba and numpy versions
 kernel's functions are decorated (numba fixes a function's cache folder at
 decoration), so other numba code in the process keeps its own cache. Every
 process computes the same key from the same sources, so workers share the folder.
+The kernel's functions are compiled once per argument type, not once per
+constant argument of the calls between them (:func:`compile_per_type`).
 
 There are two compiled simulators (:data:`KERNELS`): the one-contact kernel
 (``"kernel"``) and the several-contact one of :mod:`tasks.multicontact`
