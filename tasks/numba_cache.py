@@ -28,6 +28,8 @@ constants are compiled in) and of the Python, numba and numpy versions
 kernel's functions are decorated (numba fixes a function's cache folder at
 decoration), so other numba code in the process keeps its own cache. Every
 process computes the same key from the same sources, so workers share the folder.
+The kernel's functions are compiled once per argument type, not once per
+constant argument of the calls between them (:func:`compile_per_type`).
 
 There are two compiled simulators (:data:`KERNELS`): the one-contact kernel
 (``"kernel"``) and the several-contact one of :mod:`tasks.multicontact`
@@ -168,16 +170,54 @@ def kernel_cache(
     package: Path = _PACKAGE, sources: tuple[str, ...] = KERNEL_SOURCES, name: str = "kernel"
 ) -> Iterator[Path]:
     """Within the block, functions decorated with ``cache=True`` are cached in
-    :func:`kernel_cache_folder` (numba's ``config.CACHE_DIR``, restored after)."""
+    :func:`kernel_cache_folder` (numba's ``config.CACHE_DIR``, restored after), and
+    the compiled functions of the modules first imported in it are compiled once per
+    argument type, not once per constant (:func:`compile_per_type`)."""
     import numba.core.config
 
     folder = kernel_cache_folder(package, sources, name)
     previous = numba.core.config.CACHE_DIR
+    before = set(sys.modules)
     numba.core.config.CACHE_DIR = str(folder)
     try:
         yield folder
     finally:
         numba.core.config.CACHE_DIR = previous
+    for module in set(sys.modules) - before:
+        for value in list(getattr(sys.modules.get(module), "__dict__", {}).values()):
+            if getattr(getattr(value, "py_func", None), "__module__", None) == module:
+                compile_per_type(value)
+
+
+def compile_per_type(dispatcher) -> None:
+    """Make calls from compiled code to ``dispatcher`` (a numba function) compile it
+    for the types of their arguments, not for their constant values.
+
+    numba types a constant argument of a call between compiled functions as a
+    literal (``Literal[int](0)``, ``Literal[bool](True)``), and compiles the callee
+    once more for every combination of constants it is called with, each time with
+    everything it calls (``_shoot``, the several-contact ``run_cycle``: three times
+    each); a function called from Python has none of these signatures, so a test
+    calling it compiled it again. With the constants as their types (``int64``,
+    ``bool``), every function is compiled once per argument type, in the kernel and
+    from Python alike. Semantics are unchanged (a literal only lets numba specialise
+    the callee on the value). Without numba's internals as expected, nothing changes.
+    """
+    try:
+        from numba.core.types import unliteral
+
+        original = dispatcher.get_call_template
+    except (ImportError, AttributeError):  # another numba, or NUMBA_DISABLE_JIT
+        return
+    if getattr(original, "per_type", False):
+        return
+
+    def get_call_template(args, kws):
+        args = tuple(unliteral(a) for a in args)
+        return original(args, {k: unliteral(v) for k, v in kws.items()})
+
+    get_call_template.per_type = True
+    dispatcher.get_call_template = get_call_template
 
 
 def _kernel(name: str) -> Kernel:

@@ -60,6 +60,26 @@ def test_several_contacts_hold_the_gil_one_thread_at_most(study_file):
     assert _threads(study_file, 2, 200, extra)[0] == 0  # longer than the start-up
 
 
-@pytest.mark.parametrize("entry", ["run_points", "run_points_design", "orbit_designs"])
+@pytest.mark.parametrize("entry", ["run_points_given", "orbit_designs"])
 def test_the_simulator_entry_points_release_the_gil(entry):
     assert getattr(kernel, entry).targetoptions.get("nogil") is True
+
+
+@pytest.mark.parametrize("entry", ["run_points", "run_points_design", "run_points_seeded"])
+def test_the_other_entry_points_compute_in_the_one_that_releases_it(entry, monkeypatch):
+    """run_points and its kin are Python around the compiled run_points_given (one
+    compile of the kernel, tasks.kernel.batch): the points are computed there."""
+    import numpy as np
+
+    from tasks.classifier import scene_modes_cached, settings_args
+    from tasks.fidelity import resolve
+    from tasks.kernel import batch
+    from tasks.scene import Scene
+
+    calls = []
+    monkeypatch.setattr(batch, "run_points_given", lambda *a: calls.append(a) or (a[0],) * 3)
+    r, beta = np.array([0.8, 1.6]), np.array([0.2, 0.6])
+    scene = scene_modes_cached(Scene("ground", 2)).kernel_args()
+    args = (r, beta, scene, settings_args(resolve("fast")), 0, np.zeros((2, 0), np.int64))
+    getattr(kernel, entry)(*args[: {"run_points": 4, "run_points_design": 5}.get(entry, 6)])
+    assert len(calls) == 1 and calls[0][0] is r and calls[0][1] is beta

@@ -188,3 +188,49 @@ def test_every_subpackage_is_in_the_wheel():
     }
     assert "tasks.kernel" in found
     assert found <= listed
+
+
+def test_a_constant_argument_compiles_the_callee_for_its_type_not_its_value():
+    """numba compiles a callee once per combination of constant arguments (typed as
+    literals) of the calls between compiled functions; the kernel's functions are
+    compiled once per argument type instead (numba_cache.compile_per_type), the types a
+    call from Python gives them too."""
+    from numba import njit, types
+
+    def make():
+        @njit
+        def callee(x, k, flag):
+            return x * k if flag else x
+
+        @njit
+        def caller(x):
+            return callee(x, 2, True) + callee(x, 3, False)
+
+        return callee, caller
+
+    callee, caller = make()
+    assert caller(1.0) == 3.0
+    assert any(isinstance(t, types.Literal) for sig in callee.signatures for t in sig)  # control
+    callee, caller = make()
+    numba_cache.compile_per_type(callee)
+    assert caller(1.0) == 3.0
+    assert callee.signatures == [(types.float64, types.int64, types.boolean)]
+    callee(1.0, 2, True)  # from Python: the same signature, nothing more compiled
+    assert len(callee.signatures) == 1
+
+
+def test_every_compiled_function_of_both_simulators_is_compiled_per_type():
+    import tasks.multicontact
+    from tasks import kernel
+
+    for package in (kernel, tasks.multicontact):
+        prefix = package.__name__ + "."
+        found = [
+            value
+            for name, module in list(sys.modules.items())
+            if name.startswith(prefix)
+            for value in vars(module).values()
+            if getattr(getattr(value, "py_func", None), "__module__", None) == name
+        ]
+        assert len(found) > 20, package.__name__
+        assert all(getattr(d.get_call_template, "per_type", False) for d in found)

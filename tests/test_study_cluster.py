@@ -32,7 +32,7 @@ import subprocess
 import sys
 import time
 import urllib.request
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -749,6 +749,16 @@ def test_worker_killed_mid_run_loses_nothing(tmp_path, warm_kernels, long_refere
     assert_same_result(long_reference, out)
 
 
+def _study_tasks(dashboard: str) -> int | None:
+    """Tasks the scheduler of a LocalCluster holds (its dashboard's ``json/counts.json``),
+    or None once it no longer answers (the cluster is closing)."""
+    try:
+        with urllib.request.urlopen(f"{dashboard}/json/counts.json", timeout=5) as reply:
+            return int(json.load(reply)["tasks"])
+    except OSError:
+        return None
+
+
 def test_interrupted_run_resumes_only_missing_chunks(tmp_path, remote, long_reference):
     """Ctrl-C (SIGINT to the process group), then the rerun computes only what is missing.
 
@@ -756,7 +766,17 @@ def test_interrupted_run_resumes_only_missing_chunks(tmp_path, remote, long_refe
     same process group and get the SIGINT too (as from a terminal). The rerun
     goes to the remote scheduler, whose task stream counts the tasks actually
     run, independently of the CLI's own count.
+
+    Mid-run by construction, not by timing: once ``SAVED_BEFORE_SIGNAL`` chunks are
+    saved the worker processes are stopped (SIGSTOP) before the Ctrl-C, and continued
+    only when the client's scheduler holds no task of the study any more (it cancelled
+    them: its dashboard's counts) or has closed; so no result arrives between the
+    Ctrl-C and its handling, however loaded the machine (the rest of the study took
+    about 1.5 s once 20 chunks were saved, its chunk files lagging behind).
     """
+    import threading
+
+    import psutil
     from distributed import get_task_stream
 
     study_path = write_study(tmp_path / "long.toml", LONG)
@@ -766,20 +786,49 @@ def test_interrupted_run_resumes_only_missing_chunks(tmp_path, remote, long_refe
         _study_command("run", "long.toml", "-o", "long.nc", "--workers", "2"),
         cwd=tmp_path,
         env=_env(),
-        stdout=subprocess.PIPE,
+        stdout=subprocess.DEVNULL,
         stderr=subprocess.PIPE,
         text=True,
         start_new_session=True,
     )
+    lines: list[str] = []  # stderr, read as it comes (the pipe never fills)
+    reader = threading.Thread(target=lambda: lines.extend(proc.stderr), daemon=True)
+    reader.start()
+    stopped: list[psutil.Process] = []
     try:
         deadline = time.monotonic() + RUN_TIMEOUT
         while len(chunk_files(out)) < SAVED_BEFORE_SIGNAL:
             assert proc.poll() is None, "the run ended before the interrupt"
             assert time.monotonic() < deadline, "no chunk was saved"
             time.sleep(0.01)
+        workers = [  # the worker processes the LocalCluster spawned
+            p
+            for p in psutil.Process(proc.pid).children(recursive=True)
+            if "spawn_main" in " ".join(p.cmdline())
+        ]
+        assert len(workers) == 2, [p.cmdline() for p in workers]
+        for p in workers:
+            p.suspend()
+            stopped.append(p)
+        assert proc.poll() is None, "the run ended before the interrupt"
+        found = re.search(r"dashboard (http://127\.0\.0\.1:\d+)", "".join(lines))
+        assert found, "".join(lines)
+        assert _study_tasks(found[1])  # tasks in flight: the study is not over
         os.killpg(proc.pid, signal.SIGINT)
-        _, stderr = proc.communicate(timeout=120)
+        deadline = time.monotonic() + 120
+        while _study_tasks(found[1]):  # until the client has cancelled them
+            assert time.monotonic() < deadline, "the Ctrl-C did not cancel the tasks"
+            time.sleep(0.01)
+        for p in stopped:
+            p.resume()
+        stopped.clear()
+        proc.wait(timeout=120)
+        reader.join(timeout=30)
+        stderr = "".join(lines)
     finally:
+        for p in stopped:
+            with suppress(psutil.NoSuchProcess):
+                p.resume()
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGKILL)
             proc.wait()

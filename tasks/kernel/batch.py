@@ -140,15 +140,21 @@ def _among(a, rows, m):
     return False
 
 
-@njit(cache=True, nogil=True)
 def run_points(r, beta, scene, settings):
     """Classify every point ``(r[i], beta[i])`` (:func:`run_points_design` without
-    the design pass). Returns ``(out, final)``."""
+    the design pass). Returns ``(out, final)``.
+
+    Plain Python, as :func:`run_points_design` and :func:`run_points_seeded`: each
+    fills in the arguments it leaves out and calls the one compiled entry point,
+    :func:`run_points_given`, with the argument types :func:`tasks.classify` gives it.
+    Compiled, each would be one more copy of the whole kernel to compile (numba
+    optimises a function together with everything it calls), and its constant
+    arguments (``0``) would compile :func:`run_points_given` once more for them.
+    """
     out, final, _ = run_points_design(r, beta, scene, settings, 0)
     return out, final
 
 
-@njit(cache=True, nogil=True)
 def run_points_design(r, beta, scene, settings, samples):
     """Classify every point ``(r[i], beta[i])`` from the held start (no seeds:
     :func:`run_points_seeded`), and with ``samples > 0`` compute the design
@@ -157,12 +163,11 @@ def run_points_design(r, beta, scene, settings, samples):
     return run_points_seeded(r, beta, scene, settings, samples, seeds)
 
 
-@njit(cache=True, nogil=True)
 def run_points_seeded(r, beta, scene, settings, samples, seeds):
     """:func:`run_points_given` with no given seeds: ``seeds`` lists earlier points of
     the call only. Returns ``(out, final, design)``."""
     given = np.empty((0, 2 * scene[0].shape[0] + 4))
-    return run_points_given(r, beta, scene, settings, samples, seeds, given, 0)
+    return run_points_given(r, beta, scene, settings, int(samples), seeds, given, 0)
 
 
 @njit(cache=True, nogil=True)
