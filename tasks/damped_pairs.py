@@ -52,6 +52,10 @@ MAX_CONDITION = 1e10
 #: Largest ratio of the largest to the smallest |nu| (else: refused): phases spanning
 #: more cannot be propagated together in double precision.
 MAX_SPREAD = 1e12
+#: Smallest tolerance of a load participation ``v . p`` relative to ``|v| |p|`` (below
+#: it a member counts as unloaded whatever the eigenvectors' accuracy): rounding of the
+#: sum alone is about n eps.
+PARTICIPATION_RTOL = 1e-12
 
 
 @dataclass(frozen=True)
@@ -82,8 +86,11 @@ class DampedPairs:
     load_nu: np.ndarray
 
 
-def _eigen(M: np.ndarray, C: np.ndarray, K: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Eigenvalues ``nu`` and eigenvectors ``v`` of ``(nu^2 M + nu C + K) v = 0``."""
+def _eigen(
+    M: np.ndarray, C: np.ndarray, K: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Eigenvalues ``nu`` and eigenvectors ``v`` of ``(nu^2 M + nu C + K) v = 0``, and
+    the relative accuracy of each ``v`` (:func:`_participation_tol`)."""
     n = M.shape[0]
     A = np.zeros((2 * n, 2 * n))
     A[:n, n:] = np.eye(n)
@@ -112,7 +119,26 @@ def _eigen(M: np.ndarray, C: np.ndarray, K: np.ndarray) -> tuple[np.ndarray, np.
             "damping: two damped eigenvalues coincide (repeated, or defective as of a "
             "critically damped mode); the simulator cannot propagate this structure exactly"
         )
-    return nu, Y[:n]
+    gap = np.where(np.eye(2 * n, dtype=bool), np.inf, np.abs(nu[:, None] - nu[None, :]))
+    return nu, Y[:n], _participation_tol(nu, gap.min(axis=1), np.linalg.norm(A, 2))
+
+
+def _participation_tol(nu: np.ndarray, gap: np.ndarray, norm_a: float) -> np.ndarray:
+    """Relative accuracy of the computed ``v`` of each eigenvalue, in ``|v|``.
+
+    ``eig`` is backward stable: its eigenpairs are exact for ``A + E`` with
+    ``|E| <~ p(N) eps |A|`` (N = 2n, p(N) ~ N), so the unit eigenvector
+    ``y = (v, nu v) / |(v, nu v)|`` of a simple eigenvalue is off by about
+    ``N eps |A| / gap`` (first-order perturbation; ``gap`` the distance to the
+    nearest other eigenvalue). ``v`` is the first half of ``y``, of norm
+    ``1 / sqrt(1 + |nu|^2)``: relative to ``|v|`` the error is
+    ``N eps |A| sqrt(1 + |nu|^2) / gap``, and a participation ``v . p`` is off by
+    that times ``|v| |p|`` (Cauchy-Schwarz) however much its terms cancel. Never
+    below :data:`PARTICIPATION_RTOL`.
+    """
+    eps = np.finfo(float).eps
+    err = nu.size * eps * norm_a * np.sqrt(1.0 + np.abs(nu) ** 2) / gap
+    return np.maximum(err, PARTICIPATION_RTOL)
 
 
 def _pairs_of(nu: np.ndarray) -> list[tuple[int, int]]:
@@ -145,7 +171,8 @@ def damped_pairs(M: np.ndarray, C: np.ndarray, K: np.ndarray, p: np.ndarray) -> 
     r^2). Pairs are sorted by ``lam`` (slowest first).
     """
     n = M.shape[0]
-    nu, v = _eigen(M, C, K)
+    nu, v, tol = _eigen(M, C, K)
+    norm_p = np.linalg.norm(p)
     nu = np.where(np.abs(nu.imag) <= 1e-12 * np.max(np.abs(nu)), nu.real + 0j, nu)
     rows = []
     for i, j in _pairs_of(nu):
@@ -161,9 +188,14 @@ def damped_pairs(M: np.ndarray, C: np.ndarray, K: np.ndarray, p: np.ndarray) -> 
             vi = vi.real / np.sqrt(vi.real @ M @ vi.real)
             vj = vj.real / np.sqrt(vj.real @ M @ vj.real)
             pi_, pj = vi @ p, vj @ p
-            if abs(pi_) <= 1e-12 * np.linalg.norm(p) and abs(pj) <= 1e-12 * np.linalg.norm(p):
+            # unloaded: a participation within what the eigenvector's accuracy allows
+            # (its terms may cancel far below |v| |p|, e.g. a mode localised on a
+            # light mass under a base load, where v . M u = k_1 v_0 / omega^2)
+            free_i = abs(pi_) <= tol[i] * np.linalg.norm(vi) * norm_p
+            free_j = abs(pj) <= tol[j] * np.linalg.norm(vj) * norm_p
+            if free_i and free_j:
                 ai, aj = 1.0, 1.0
-            elif abs(pi_) <= 1e-12 * np.linalg.norm(p) or abs(pj) <= 1e-12 * np.linalg.norm(p):
+            elif free_i or free_j:
                 raise ValueError(
                     "damping: an overdamped pair with one member unloaded cannot be "
                     "written as one oscillator (refused)"

@@ -107,3 +107,17 @@ def test_repeated_eigenvalues_are_refused():
     # critical damping of one DOF: a defective double eigenvalue
     with pytest.raises(ValueError, match="^damping: the damped eigenvectors"):
         damped_pairs(np.eye(1), 2.0 * np.eye(1), np.eye(1), np.array([1.0]))
+
+
+def test_an_overdamped_pair_with_one_member_really_unloaded_is_refused():
+    """M = I, C = [[10, 1], [1, 3]], K = [[1, 1], [1, 2]] (both SPD): v = (0, 1) is an
+    eigenvector of nu = -1 exactly (the second column of nu^2 M + nu C + K vanishes),
+    unloaded by p = (1, 0); the other eigenvalues, roots of nu^3 + 12 nu^2 + 20 nu + 1,
+    are real (-0.052, -1.94, -10.01) and -1 pairs with -1.94, a loaded member: no
+    coordinate (4.8) avoids the harmonic load in eta' (docs/structures.md 4.5)."""
+    M, C, K = np.eye(2), np.array([[10.0, 1.0], [1.0, 3.0]]), np.array([[1.0, 1.0], [1.0, 2.0]])
+    with pytest.raises(ValueError, match="^damping: an overdamped pair with one member unloaded"):
+        damped_pairs(M, C, K, np.array([1.0, 0.0]))
+    # the control: both members loaded (p on both DOFs), a valid oscillator
+    pairs = damped_pairs(M, C, K, np.array([1.0, 1.0]))
+    assert np.all(pairs.lam > 0.0) and np.all(pairs.damp > 0.0)

@@ -91,7 +91,7 @@ def _held_orbit(r: float, beta: float):
     args = stuck_sets_cached(CHAIN).kernel_args()
     out_g = np.zeros(layout.N_OG)
     out_c = np.zeros((2, layout.N_OC))
-    X, stuck, signs = steady.simulate_point(r, beta, args, st, out_g, out_c)
+    X, stuck, signs, _ = steady.simulate_point(r, beta, args, st, out_g, out_c)
     ctx = steady.point_context(r, beta, args, st)
     return X, stuck, signs, ctx, out_g, out_c
 
@@ -168,3 +168,73 @@ def test_frictionless_partner_gives_the_one_contact_creep_labels():
     np.testing.assert_array_equal(res.asymptotic, kern.asymptotic)
     np.testing.assert_array_equal(res.converged, kern.converged)
     assert np.all(res.regime[:, 1] == regimes.CONTINUOUS)
+
+
+# A damped 3 DOF structure nobody tuned (reference.random_structure, seed 103, Rayleigh
+# C = 0.02 M + 0.01 K), a contact at DOF 2 at its motion bound (5e-10 above it: the held
+# margin leaves it to the simulation) and a frictionless partner at DOF 0, from rest.
+_RNG_M, _RNG_K, _RNG_P = ref.random_structure(np.random.default_rng(103), 3)
+_RAYLEIGH = ("rayleigh", 0.02, 0.01)
+_AT_BOUND_R = np.array([0.5, 1.3])
+
+
+def _at_bound():
+    from analysis import damped
+
+    one = Scene.from_matrices(_RNG_M, _RNG_K, _RNG_P, ("ground", 2), damping=_RAYLEIGH)
+    two = MultiScene.from_matrices(
+        _RNG_M, _RNG_K, _RNG_P, [("ground", 0), ("ground", 2)], beta_ratio=[0.0, 1.0],
+        damping=_RAYLEIGH,
+    )  # fmt: skip
+    beta = damped.motion_bound(one, _AT_BOUND_R) * (1.0 + 5e-10)
+    return one, two, beta
+
+
+def test_every_contact_creeping_settles_by_the_stuck_structure():
+    """The stuck structure's rule (docs/contacts.md 4) when every contact with friction
+    creeps: from rest the contact's stuck offset slips at every force peak, one way,
+    by amounts shrinking as 1 / n^2, with the stuck structure's force bound within
+    (1 + 1e-3) beta from cycle 17 on. Waiting for cycles without events never settled
+    it (not_converged at the 2000-cycle budget); now no motion, ``asymptotic``, as the
+    one-contact kernel labels the scene without the partner, and as the energy
+    argument says above the bound; the frictionless partner continuous. The scipy
+    reference from rest creeps the same way (one way, shrinking), and from the held
+    start it is no motion."""
+    one, two, beta = _at_bound()
+    res = classify(two, _AT_BOUND_R, beta, initial_condition="rest")
+    kern = classify(one, _AT_BOUND_R, beta, initial_condition="rest")
+    assert np.all(res.converged) and np.all(res.asymptotic)
+    assert np.all(kern.regime == regimes.NO_MOTION)
+    np.testing.assert_array_equal(res.regime[:, 1], kern.regime)
+    assert np.all(res.regime[:, 0] == regimes.CONTINUOUS)
+    assert np.all(res.cycles < 200)
+    r, b = float(_AT_BOUND_R[0]), float(beta[0])
+    regime, _, ok = ref.reference_point(two, r, b, max_cycles=20)
+    assert ok and regime[1] == regimes.NO_MOTION
+    sys_ = ref._System(two, r, b)
+    n = sys_.n
+    y = np.zeros(2 * n)
+    stuck, signs = sys_.decide(0.0, y[:n], y[n:], [1], {0: 0.0})
+    signs = {c: signs.get(c, 0.0) for c in range(2)}
+    drift = []
+    for _ in range(60):
+        stats = [{"stuck": 0.0, "sticks": 0} for _ in range(2)]
+        y1, stuck, signs = ref._cycle(sys_, y.copy(), tuple(stuck), dict(signs), stats)
+        drift.append((sys_.B.T @ (y1[:n] - y[:n]))[1])
+        y = y1
+    late = np.array(drift[25:])
+    assert np.all(late > 0.0) or np.all(late < 0.0)  # one way: no periodic orbit
+    assert abs(late[-10:]).mean() < 0.5 * abs(late[:10]).mean()  # shrinking
+
+
+def test_the_recorded_orbit_is_the_accepted_one():
+    """``steady.record_orbit`` of a point the creep rule settled with its contact held
+    (the first point above) records the period the rule accepted: the contact stuck
+    throughout. It replayed the period with the contact released, where it slips
+    (1.2e-6 in that period: the stuck structure's bound exceeds beta slightly)."""
+    _, two, beta = _at_bound()
+    st = settings_args(resolve("balanced"), regimes.IC_REST)
+    args = stuck_sets_cached(two).kernel_args()
+    og, oc, rec, rows = steady.record_orbit(float(_AT_BOUND_R[0]), float(beta[0]), args, st, 400)
+    assert og[layout.OG_CONVERGED] == 1.0 and oc[1, layout.OC_REGIME] == regimes.NO_MOTION
+    assert rows >= 2 and np.all(rec[:rows, 1].astype(int) == 2)

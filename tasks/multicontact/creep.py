@@ -9,8 +9,9 @@ cases:
 
 * every contact with friction creeps, all stuck: the single-contact rule per contact
   (:func:`tasks.kernel.creep.creep_settled`: most cycles of the window without an
-  event, and the stuck section's force bound at most ``(1 + CREEP_FORCE_RTOL) beta_c``
-  for every contact; :func:`all_stuck_settled`);
+  event, or every contact drifting one way through it, and the stuck section's force
+  bound at most ``(1 + CREEP_FORCE_RTOL) beta_c`` for every contact;
+  :func:`all_stuck_settled`);
 * others move: the motion is continued with H held (:func:`held_context`) to its
   periodic orbit; H reaches no motion when each held contact's force swings by at
   most ``2 (1 - CREEP_FORCE_RTOL) beta_c`` over that period (:func:`swing_certified`):

@@ -605,8 +605,10 @@ def start_state(ctx, ic, r, beta, seed):
 @njit(cache=True)
 def simulate_point(r, beta, args, settings, out_g, out_c):
     """Steady state of one point: fills ``out_g`` (``OG_*``) and ``out_c`` (``OC_*``,
-    one row per contact). Returns the section state ``(X, stuck, signs)`` of the
-    steady state found (of the last cycle run where none was found)."""
+    one row per contact). Returns the section state ``(X, stuck, signs, held)`` of
+    the steady state found (of the last cycle run where none was found), ``held``
+    the contacts the creep rule held (:func:`tasks.multicontact.creep.held_context`)
+    in the run that found it (0: none): its orbit is that of ``ctx`` holding them."""
     section_rtol = settings[2]
     max_cycles = settings[3]
     min_cycles = settings[4]
@@ -624,14 +626,14 @@ def simulate_point(r, beta, args, settings, out_g, out_c):
         Xf, exists = held_response(ctx, 0)
         if not exists:
             _undetermined(out_g, out_c, UNBOUNDED, 0, used)
-            return X, stuck, signs
+            return X, stuck, signs, 0
         _finish(Xf, 0, np.zeros(k), ctx, 1, 0, used, out_g, out_c, max_work)
-        return Xf, 0, np.zeros(k)
+        return Xf, 0, np.zeros(k), 0
     if used != IC_HELD and held_margins(ctx, margins):
         Xh, _ = held_response(ctx, ctx[CX_ACTIVE])
         _finish(Xh, ctx[CX_ACTIVE], np.zeros(k), ctx, 1, 0, used, out_g, out_c, max_work)
         out_g[OG_ASYMPTOTIC] = 1.0
-        return Xh, ctx[CX_ACTIVE], np.zeros(k)
+        return Xh, ctx[CX_ACTIVE], np.zeros(k), 0
     cst = np.zeros((k, N_CST))
     gst = np.zeros(N_GST)
     for c in range(k):
@@ -666,7 +668,7 @@ def simulate_point(r, beta, args, settings, out_g, out_c):
         work += gst[GS_WORK]
         if gst[GS_STATUS] != 0.0:
             _undetermined(out_g, out_c, gst[GS_STATUS], cycles, used)
-            return X, stuck, signs
+            return X, stuck, signs, held
         if gst[GS_FOREVER] > 0.0:  # every contact stuck for ever: no motion
             stuck = st_before
             signs = s_before
@@ -684,9 +686,11 @@ def simulate_point(r, beta, args, settings, out_g, out_c):
             )
             prev_drift[:] = runs[:, 2]
             held = creep.update(X, Xn, stuck, tot, ctx, runs, drift, refused)
+            # most of the window without an event, or every contact drifting one way
+            # through it (a creep in progress at each: no orbit of any period)
             if (
                 small_run >= CREEP_WINDOW
-                and 2 * quiet_run > small_run
+                and (2 * quiet_run > small_run or held == ctx[CX_ACTIVE])
                 and creep.all_stuck_settled(Xn, stuck, signs, ctx)
             ):  # the stuck structure settles as one contact does: hold it, finish
                 hctx = creep.held_context(ctx, ctx[CX_ACTIVE])
@@ -694,7 +698,7 @@ def simulate_point(r, beta, args, settings, out_g, out_c):
                 _settle(
                     Xn, stuck, signs, hctx, -1, betas, 1, cycles, used, out_g, out_c, amps, max_work
                 )
-                return Xn, stuck, signs
+                return Xn, stuck, signs, ctx[CX_ACTIVE]
             if held == ctx[CX_ACTIVE]:
                 held = 0  # every contact creeps: the stuck structure's window decides
             if held != 0 and not creep.swing_certified(
@@ -721,7 +725,7 @@ def simulate_point(r, beta, args, settings, out_g, out_c):
         scale = max(_max_abs(X), 1e-300)
         if scale > growth_factor * ref:
             _undetermined(out_g, out_c, UNBOUNDED, cycles, used)
-            return X, stuck, signs
+            return X, stuck, signs, held
         # a contact drifting one way (creep.update) over the period: no steady state,
         # whatever the tolerance
         drifts = np.any(runs[:, 2] != 0)
@@ -750,12 +754,12 @@ def simulate_point(r, beta, args, settings, out_g, out_c):
                 X2 = X1
     if period == 0:
         _undetermined(out_g, out_c, NOT_CONVERGED, cycles, used)
-        return X, stuck, signs
+        return X, stuck, signs, held
     if gst[GS_FOREVER] == 0.0:
         X = polish(X, stuck, signs, ctx, period, max_work)
     _finish(X, stuck, signs, ctx, period, cycles, used, out_g, out_c, max_work)
     _settle(X, stuck, signs, ctx, held, betas, period, cycles, used, out_g, out_c, amps, max_work)
-    return X, stuck, signs
+    return X, stuck, signs, held
 
 
 @njit(cache=True, parallel=False)
@@ -774,13 +778,17 @@ def run_points(r, beta, args, settings):
 def record_orbit(r, beta, args, settings, max_rows):
     """The steady state of one point and its last period, phase by phase:
     ``(out_g, out_c, rec, rows)``, ``rec`` rows ``(tau, stuck, signs, x, x')`` at
-    every phase start of the period (and its end), for tests and figures."""
+    every phase start of the period (and its end), for tests and figures. The period
+    is the accepted orbit's: run with the contacts the creep rule held held
+    (docs/contacts.md 4), as :func:`simulate_point` found it."""
     k = args[5].shape[1]
     n = args[3].shape[0]
     out_g = np.zeros(N_OG)
     out_c = np.zeros((k, N_OC))
-    X, stuck, signs = simulate_point(r, beta, args, settings, out_g, out_c)
+    X, stuck, signs, held = simulate_point(r, beta, args, settings, out_g, out_c)
     ctx = point_context(r, beta, args, settings)
+    if held != 0:  # the orbit accepted: with the creeping contacts held
+        ctx = creep.held_context(ctx, held)
     rec = np.zeros((max_rows, 2 + k + 2 * n))
     period = max(int(out_g[OG_PERIOD]), 1)
     cst = np.zeros((k, N_CST))
