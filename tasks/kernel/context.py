@@ -13,9 +13,14 @@ import math
 import numpy as np
 from numba import njit
 
+from tasks.kernel.cycle import _max_abs
 from tasks.kernel.events import DIP_STACK
 from tasks.kernel.layout import (
     ALPHA,
+    CTX_K,
+    CTX_P,
+    CTX_PHI,
+    CTX_SEG_SLIP,
     DAMP,
     DAMPED,
     DELTA,
@@ -25,6 +30,7 @@ from tasks.kernel.layout import (
     OMEGA,
     WORK_CAP,
 )
+from tasks.kernel.linsolve import _solve
 from tasks.kernel.phases import _contact_force, _dot
 from tasks.kernel.starts import _held_response, _random_start, start_phase
 from tasks.regimes import IC_HELD, IC_RANDOM, IC_REST
@@ -203,3 +209,50 @@ def _context(r, beta, scene, settings):
         g0 -= r * _dot(g_c, X[n:])
     mode = 0 if abs(g0) <= beta else (1 if g0 > 0.0 else -1)
     return ctx, work, X, mode, ic_used
+
+
+@njit(cache=True)
+def motion_floor(ctx, X_held):
+    """Scale a section residual is measured against when the motion itself is small.
+
+    The larger of the held start ``X_held`` and the response of the sliding
+    system's modes to the load amplitude with each mode's stiffness at least
+    the excitation's inertia: ``sum_k phi_k a_k / max(Omega_k^2, 1)`` (modal
+    equation ``eta_k'' + Omega_k^2 eta_k = a_k cos tau``, docs/simulator.md 2).
+    Where every mode lies at or above the excitation (``Omega_k >= 1``) this is
+    the static response ``K^-1 p``, solved directly. A mode far below the
+    excitation (a soft spring under a heavy mass) moves about ``a_k`` at the
+    excitation frequency, not its static ``a_k / Omega_k^2``: the static
+    response would be a scale many orders of magnitude above the motion, and a
+    tolerance relative to it would accept a transient of that mode still
+    creeping as a steady state (docs/simulator.md 5). Non-proportional damping
+    (modal pairs, docs/structures.md 4.5) keeps the static response.
+
+    Parameters
+    ----------
+    ctx : tuple
+        The point's context (:func:`_context`).
+    X_held : ndarray
+        The held start ``(x, x')`` (:func:`tasks.kernel.starts._held_response`).
+
+    Returns
+    -------
+    float
+        The floor, positive.
+    """
+    seg = ctx[CTX_SEG_SLIP]
+    phi = ctx[CTX_PHI]
+    n = seg.shape[1]
+    soft = False
+    if phi.shape[0] == n:  # real modes (undamped or proportionally damped)
+        for k in range(n):
+            soft = soft or seg[OMEGA, k] < 1.0
+    if soft:
+        resp = np.zeros(n)
+        for k in range(n):
+            c = seg[LOAD_COS, k] / max(seg[OMEGA, k] ** 2, 1.0)
+            for i in range(n):
+                resp[i] += phi[i, k] * c
+    else:
+        resp = _solve(ctx[CTX_K], ctx[CTX_P])
+    return max(_max_abs(X_held), _max_abs(resp), 1e-300)

@@ -11,8 +11,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from tasks.kernel.context import _context
-from tasks.kernel.cycle import replay_cycles
+from tasks.kernel.context import _context, motion_floor
+from tasks.kernel.cycle import _max_abs, replay_cycles
 from tasks.kernel.layout import (
     BETA,
     CTX_B,
@@ -49,13 +49,19 @@ from tasks.kernel.layout import (
 from tasks.kernel.outcome import _undetermined
 from tasks.kernel.phases import _dot, _start_slip, start_stick_in
 from tasks.kernel.propagation import derivative_bounds, observable_range
-from tasks.regimes import NO_MOTION, NUMERICAL_FAILURE, WORK_LIMIT
+from tasks.regimes import NO_MOTION, NOT_CONVERGED, NUMERICAL_FAILURE, WORK_LIMIT
 
 # Orbit invariant (:func:`orbit_holds`): stated tolerance of ``|g| <= beta`` in
 # stick phases, relative to beta, and samples per shortest modal half-period.
 ORBIT_RTOL = 1e-9
 ORBIT_SAMPLES = 8.0
 ORBIT_MAX_SAMPLES = 4096.0
+# The replayed period must close (:func:`closes`): its end state within this many
+# times ``section_rtol`` of the motion (or of :func:`motion_floor`) of its start.
+# Every accepted orbit closes to ``section_rtol`` by its own acceptance test; the
+# margin covers the plain iteration's reference, which can include the first
+# cycles' motion.
+CLOSE_MARGIN = 10.0
 
 
 @njit(**LEAF)
@@ -180,9 +186,11 @@ def _check_orbit(r, beta, scene, settings, out, final, keep, kept):
     """Flag a converged point whose orbit fails :func:`orbit_holds` (never report it).
 
     The point becomes ``NUMERICAL_FAILURE`` (an event the search could not
-    locate), or ``WORK_LIMIT`` if the check ran out of budget (it has a budget
-    of its own, ``max_work``). No-motion points are certified by :func:`never_unsticks` and
-    continuous points at beta = 0 are linear: neither is re-checked.
+    locate), ``WORK_LIMIT`` if the check ran out of budget (it has a budget
+    of its own, ``max_work``), or ``NOT_CONVERGED`` if the replayed period does
+    not close (:func:`closes`: the section state is a transient). No-motion
+    points are certified by :func:`never_unsticks` and continuous points at
+    beta = 0 are linear: neither is re-checked.
 
     ``keep`` may hold ``kept`` rows: the records of a period-1 orbit's verified
     period (:func:`tasks.kernel.shooting._shoot`); when they start from exactly
@@ -196,7 +204,7 @@ def _check_orbit(r, beta, scene, settings, out, final, keep, kept):
     n = (final.shape[0] - 2) // 2
     if out[OUT_CONVERGED] != 1.0 or out[OUT_REGIME] == NO_MOTION or beta == 0.0:
         return np.zeros((0, REC_X + 2 * n)), 0
-    ctx, work, _, _, _ = _context(r, beta, scene, settings)
+    ctx, work, X_start, _, _ = _context(r, beta, scene, settings)
     X = final[: 2 * n].copy()
     mode = int(final[2 * n])
     theta = final[2 * n + 1]
@@ -219,4 +227,30 @@ def _check_orbit(r, beta, scene, settings, out, final, keep, kept):
         _undetermined(out, NUMERICAL_FAILURE, out[OUT_CYCLES], out[OUT_IC])
     elif holds < 0:
         _undetermined(out, WORK_LIMIT, out[OUT_CYCLES], out[OUT_IC])
+    elif not closes(rec, nr, X, settings[2], motion_floor(ctx, X_start)):
+        # a transient still creeping is not a steady state: never reported
+        _undetermined(out, NOT_CONVERGED, out[OUT_CYCLES], out[OUT_IC])
+        holds = 0
     return rec, nr if holds == 1 else 0
+
+
+@njit(cache=True)
+def closes(rec, nr, X, rtol, floor):
+    """Whether a replayed orbit (``nr`` records from the section state ``X``) is periodic.
+
+    The state at its end (the ``EV_END`` row, one or two periods on) must equal
+    ``X`` to ``CLOSE_MARGIN * rtol`` of the larger of the motion and ``floor``
+    (:func:`tasks.kernel.context.motion_floor`): ``P(X) = X`` on the Poincare
+    section, docs/simulator.md 5. Independent of how the orbit was accepted (plain
+    iteration, shooting, a warm start, the polish), it refuses an orbit whose
+    section state is a transient.
+    """
+    n = X.shape[0] // 2
+    if nr < 2 or rec[nr - 1, REC_KIND] != EV_END:
+        return False
+    end = rec[nr - 1, REC_X : REC_X + 2 * n]
+    diff = 0.0
+    for i in range(2 * n):
+        diff = max(diff, abs(end[i] - X[i]))
+    scale = max(_max_abs(X), _max_abs(end), floor)
+    return diff <= CLOSE_MARGIN * rtol * scale
