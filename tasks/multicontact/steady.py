@@ -1,14 +1,10 @@
 """Steady state of one point with several contacts, and many points (docs/contacts.md 4).
 
-From the start (held: every contact held at zero relative displacement, the
-rest on the forced response of the held structure; or rest), excitation cycles
-are run (:func:`tasks.multicontact.cycle.run_cycle`) until the Poincare section
-``tau = 2 pi n`` repeats with the same stuck set and slip signs (period 1 or 2),
-with Newton's method on the Poincare map for slow transients, or until every
-contact provably stays stuck (no motion). The converged period is run once
-more with the orbit check (every stuck contact's force within its limit and
-every sliding contact's velocity of its slip sign at sampled points of every
-phase) and the design quantities (force amplitude by the same samples).
+From the held start or rest, excitation cycles (:func:`tasks.multicontact.cycle.run_cycle`)
+run until the section ``tau = 2 pi n`` repeats with the same stuck set and slip signs
+(period 1 or 2; Newton on the Poincare map for slow transients) or every contact provably
+stays stuck; the converged period is run once more with the orbit check and the design
+quantities (docs/contacts.md 4).
 """
 
 from __future__ import annotations
