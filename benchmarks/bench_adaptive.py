@@ -97,6 +97,17 @@ simulator alone, the most it can reach with no Python in the tasks either:
 
     python benchmarks/bench_adaptive.py --tasks --scenes fig04:gamma1_kappa1
 
+``--periods``: where the periods go (``cycles``, the excitation periods simulated per
+point), for each ``--cluster`` scene: its adaptive study run once in this process to
+collect its tiles and point lists, which are computed again with each point's periods
+recorded, against the same points' periods in the dense grid (cached, as ``--replay``):
+the totals and their ratio, the points costing over 10 periods more than in the dense
+grid (the tail), and the mean periods and share by part (each tile's coarse lattice,
+its refinement, the verification sample), by grid steps to the nearest change of
+the refinement's key in the dense grid, and by the dense grid's regime:
+
+    python benchmarks/bench_adaptive.py --periods --scenes dof3_mass_m2_m3 dof6_ground_m5
+
 ``--example N``: ``study run examples/adaptive.toml`` through the CLI N times
 (a fresh process each, the compiled kernel cached; small studies compute in
 threads of that process, :func:`study.drive.local_threads`), wall and CPU seconds:
@@ -662,14 +673,120 @@ def _module(code: Path, path: str):
     return module
 
 
-def tasks_main(args, n_r: int, n_beta: int) -> int:
-    """``--tasks``: the adaptive study's tiles and point lists against the dense grid's
-    chunks, CPU seconds in this process, in all and in the compiled simulator."""
+def study_units(args, sc: dict, n_r: int, n_beta: int) -> dict[str, list]:
+    """The tasks of the adaptive study of the ``--cluster`` scene ``sc``, run once in this
+    process: its ``tiles`` (``study.tiles.tile_chunk``) and point ``lists`` (the sample)."""
     import tempfile
 
     import study.compute as compute
     import study.tiles as tiles
     from study.cli import main as study_main
+
+    units: dict[str, list] = {"tiles": [], "lists": []}
+    tile_chunk, point_list = tiles.tile_chunk, compute.KINDS["adaptive"]
+    tiles.tile_chunk = lambda task: units["tiles"].append(task) or tile_chunk(task)
+    compute.KINDS["adaptive"] = lambda task: units["lists"].append(task) or point_list(task)
+    mode = ADAPTIVE_MODE.format(step=args.coarse_step)
+    text = STUDY.format(fidelity=args.fidelity, mode=mode, n_r=n_r, n_beta=n_beta, **sc)
+    try:
+        with tempfile.TemporaryDirectory() as tmp:
+            (Path(tmp) / "s.toml").write_text(text)
+            study_main(["run", str(Path(tmp) / "s.toml"), "-o", str(Path(tmp) / "s.nc"), "--quiet"])
+    finally:
+        tiles.tile_chunk, compute.KINDS["adaptive"] = tile_chunk, point_list
+    return units
+
+
+def recorded_periods(units: dict[str, list], r: np.ndarray, beta: np.ndarray):
+    """Compute an adaptive study's tasks (:func:`study_units`) again, recording each
+    simulated point: its flat index on the plane ``r`` x ``beta``, its periods
+    (``cycles``) and its part (a tile's coarse lattice, its refinement, the sample)."""
+    import study.compute as compute
+    import study.tiles as tiles
+
+    got: list[tuple[np.ndarray, np.ndarray, str]] = []
+    part = [""]
+    classify_unit = compute._classify
+
+    def recorded(scene, settings, rr, bb, given=None):
+        out = classify_unit(scene, settings, rr, bb, given)
+        i = np.clip(np.searchsorted(r, rr - 1e-12 * np.abs(rr)), 0, r.size - 1)
+        j = np.clip(np.searchsorted(beta, bb - 1e-12), 0, beta.size - 1)
+        got.append((i * beta.size + j, out["cycles"].astype(float), part[0]))
+        part[0] = "refinement"
+        return out
+
+    compute._classify = recorded
+    try:
+        for unit in units["tiles"]:
+            part[0] = "coarse lattice"  # a tile's first round
+            tiles.tile_chunk(unit)
+        for unit in units["lists"]:
+            part[0] = "sample"
+            compute.KINDS["adaptive"](unit)
+    finally:
+        compute._classify = classify_unit
+    flat = np.concatenate([g[0] for g in got])
+    periods = np.concatenate([g[1] for g in got])
+    parts = np.concatenate([np.full(g[0].size, g[2]) for g in got])
+    if units["lists"] and not units["tiles"]:  # no tiles: point lists only
+        parts[:] = "point lists"
+    return flat, periods, parts
+
+
+def periods_main(args, n_r: int, n_beta: int) -> int:
+    """``--periods``: where the simulated periods (``cycles``) of each ``--cluster`` scene's
+    adaptive study go, against the same points in the dense grid (cached, as ``--replay``)."""
+    from scipy import ndimage
+
+    print(
+        f"periods of the adaptive study's points against the dense grid's, {n_r} x {n_beta}, "
+        f"fidelity {args.fidelity}, coarse_step {args.coarse_step}, hint exact"
+    )
+    for sc in cluster_scenes(args.scenes):
+        scene, r, beta, dense = dense_fields(sc, n_r, n_beta, args.cache, args.fidelity)
+        units = study_units(args, sc, n_r, n_beta)
+        flat, ad, parts = recorded_periods(units, r, beta)
+        dc = dense["cycles"].astype(float).ravel()
+        de = dc[flat]
+        edge = next_to_change(dense)
+        dist = ndimage.distance_transform_cdt(~edge, metric="chessboard").ravel()[flat]
+        regime = dense["regime"].ravel()[flat]
+        print(
+            f"\n{sc['name']}: {flat.size:,} points simulated ({100 * flat.size / dc.size:.2f} %), "
+            f"{ad.sum():,.0f} periods, {de.sum():,.0f} in the dense grid at the same points "
+            f"(x {ad.sum() / de.sum():.2f}); dense grid {dc.sum():,.0f} periods: ratio "
+            f"{dc.sum() / ad.sum():.1f} (at the dense cost {dc.sum() / de.sum():.1f})"
+        )
+        tail = ad - de > 10
+        print(
+            f"points costing over 10 periods more than in the dense grid: {int(tail.sum())} "
+            f"({100 * tail.mean():.1f} %), {100 * (ad - de)[tail].sum() / (ad - de).sum():.0f} % "
+            "of the excess"
+        )
+        print("| points | n | periods (mean) | dense periods there (mean) | share of the periods |")
+        print("|---|---|---|---|---|")
+        groups = [(f"part: {p}", parts == p) for p in dict.fromkeys(parts)]
+        for lo, hi in ((0, 0), (1, 1), (2, 3), (4, 7), (8, None)):
+            name = f"{lo}" if lo == hi else f"{lo}-{hi}" if hi else f"{lo}+"
+            upper = dist.max() if hi is None else hi
+            groups.append((f"steps to a change: {name}", (dist >= lo) & (dist <= upper)))
+        groups += [(f"dense regime {int(g)}", regime == g) for g in np.unique(regime)]
+        for name, m in groups:
+            if m.any():
+                print(
+                    f"| {name} | {int(m.sum()):,} | {ad[m].mean():.2f} | {de[m].mean():.2f} "
+                    f"| {ad[m].sum() / ad.sum():.3f} |",
+                    flush=True,
+                )
+    return 0
+
+
+def tasks_main(args, n_r: int, n_beta: int) -> int:
+    """``--tasks``: the adaptive study's tiles and point lists against the dense grid's
+    chunks, CPU seconds in this process, in all and in the compiled simulator."""
+    import study.compute as compute
+    import study.tiles as tiles
     from tasks import kernel
 
     spent = [0.0]
@@ -700,19 +817,9 @@ def tasks_main(args, n_r: int, n_beta: int) -> int:
         "| dense / simulator in the tasks |"
     )
     print("|---|---|---|---|---|---|")
-    tile_chunk, point_list = tiles.tile_chunk, compute.KINDS["adaptive"]
+    point_list = compute.KINDS["adaptive"]
     for sc in cluster_scenes(args.scenes):
-        units: dict[str, list] = {"tiles": [], "lists": []}
-        tiles.tile_chunk = lambda task, u=units: u["tiles"].append(task) or tile_chunk(task)
-        compute.KINDS["adaptive"] = lambda task, u=units: (
-            u["lists"].append(task) or point_list(task)
-        )
-        mode = ADAPTIVE_MODE.format(step=args.coarse_step)
-        text = STUDY.format(fidelity=args.fidelity, mode=mode, n_r=n_r, n_beta=n_beta, **sc)
-        with tempfile.TemporaryDirectory() as tmp:
-            (Path(tmp) / "s.toml").write_text(text)
-            study_main(["run", str(Path(tmp) / "s.toml"), "-o", str(Path(tmp) / "s.nc"), "--quiet"])
-        tiles.tile_chunk, compute.KINDS["adaptive"] = tile_chunk, point_list
+        units = study_units(args, sc, n_r, n_beta)
         kernel.run_points_given = timed
         try:
             first = units["tiles"][0] if units["tiles"] else units["lists"][0]
@@ -806,6 +913,7 @@ def main(argv: list[str] | None = None) -> int:
         "--tile-sample", action="store_true", help="--cluster: the sample inside the tiles too"
     )
     ap.add_argument("--tasks", action="store_true", help="the adaptive tasks' CPU, one process")
+    ap.add_argument("--periods", action="store_true", help="where the adaptive study's periods go")
     ap.add_argument("--example", type=int, default=0, help="time the CLI on the example N times")
     ap.add_argument(
         "--code",
@@ -823,6 +931,8 @@ def main(argv: list[str] | None = None) -> int:
         return replay_main(args, n_r, n_beta)
     if args.tasks:
         return tasks_main(args, n_r, n_beta)
+    if args.periods:
+        return periods_main(args, n_r, n_beta)
     if args.timeline:
         return timeline_main(args, n_r, n_beta)
     if args.cluster:
