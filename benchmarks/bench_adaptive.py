@@ -103,7 +103,8 @@ collect its tiles and point lists, which are computed again with each point's pe
 recorded, against the same points' periods in the dense grid (cached, as ``--replay``):
 the totals and their ratio, the points costing over 10 periods more than in the dense
 grid (the tail), and the mean periods and share by part (each tile's coarse lattice,
-its refinement, the verification sample), by grid steps to the nearest change of
+its refinement, the point lists: the verification sample, and the cells where the
+tiles meet), by grid steps to the nearest change of
 the refinement's key in the dense grid, and by the dense grid's regime:
 
     python benchmarks/bench_adaptive.py --periods --scenes dof3_mass_m2_m3 dof6_ground_m5
@@ -700,7 +701,8 @@ def study_units(args, sc: dict, n_r: int, n_beta: int) -> dict[str, list]:
 def recorded_periods(units: dict[str, list], r: np.ndarray, beta: np.ndarray):
     """Compute an adaptive study's tasks (:func:`study_units`) again, recording each
     simulated point: its flat index on the plane ``r`` x ``beta``, its periods
-    (``cycles``) and its part (a tile's coarse lattice, its refinement, the sample)."""
+    (``cycles``) and its part (a tile's coarse lattice, its refinement, the point lists:
+    the verification sample, and the cells where the tiles meet)."""
     import study.compute as compute
     import study.tiles as tiles
 
@@ -722,15 +724,13 @@ def recorded_periods(units: dict[str, list], r: np.ndarray, beta: np.ndarray):
             part[0] = "coarse lattice"  # a tile's first round
             tiles.tile_chunk(unit)
         for unit in units["lists"]:
-            part[0] = "sample"
+            part[0] = "point lists"  # the sample, and the cells where tiles meet
             compute.KINDS["adaptive"](unit)
     finally:
         compute._classify = classify_unit
     flat = np.concatenate([g[0] for g in got])
     periods = np.concatenate([g[1] for g in got])
     parts = np.concatenate([np.full(g[0].size, g[2]) for g in got])
-    if units["lists"] and not units["tiles"]:  # no tiles: point lists only
-        parts[:] = "point lists"
     return flat, periods, parts
 
 
