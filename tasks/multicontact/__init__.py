@@ -12,6 +12,7 @@ docs/contacts.md is the theory and the rules. Modules, one job each:
 * :mod:`~tasks.multicontact.section`: the Poincare section: periods run from it,
   Newton on its map, the polish of a converged section state;
 * :mod:`~tasks.multicontact.creep`: the settling rule of a creep in progress;
+* :mod:`~tasks.multicontact.shifted`: that rule, every contact stuck, at a shifted section;
 * :mod:`~tasks.multicontact.fields`: the result fields of a converged period;
 * :mod:`~tasks.multicontact.steady`: steady state of a point, many points;
 * :mod:`~tasks.multicontact.classify`: :func:`classify_multi` and its result;

@@ -4,8 +4,10 @@ From the held start or rest (:mod:`tasks.multicontact.starts`), excitation cycle
 from the section ``tau = 2 pi n`` (:mod:`tasks.multicontact.section`) until it repeats
 with the same stuck set and slip signs (period 1 or 2; Newton on the Poincare map for
 slow transients), every contact provably stays stuck, or the creep rule settles it
-(:mod:`tasks.multicontact.creep`); the converged period is run once more with the
-orbit check and the design quantities (:mod:`tasks.multicontact.fields`).
+(:mod:`tasks.multicontact.creep`; at a shifted section where every contact is stuck
+when some contact's creep straddles this one, :mod:`tasks.multicontact.shifted`); the
+converged period is run once more with the orbit check and the design quantities
+(:mod:`tasks.multicontact.fields`).
 """
 
 from __future__ import annotations
@@ -16,7 +18,7 @@ import numpy as np
 from numba import njit, prange
 
 from tasks.kernel.layout import TWO_PI
-from tasks.multicontact import creep, viscous
+from tasks.multicontact import creep, shifted, viscous
 from tasks.multicontact.cycle import run_cycle
 from tasks.multicontact.fields import finish, settle, undetermined
 from tasks.multicontact.held import held_margins, held_response
@@ -211,7 +213,7 @@ def simulate_point(r, beta, args, settings, out_g, out_c):
             if (
                 small_run >= CREEP_WINDOW
                 and (2 * quiet_run > small_run or held == ctx[CX_ACTIVE])
-                and creep.all_stuck_settled(Xn, stuck, signs, ctx)
+                and creep.all_stuck_settled(Xn, stuck, signs, ctx, 0.0)
             ):  # the stuck structure settles as one contact does: hold it, finish
                 hctx = creep.held_context(ctx, ctx[CX_ACTIVE])
                 finish(Xn, stuck, signs, hctx, 1, cycles, used, out_g, out_c, max_work)
@@ -219,6 +221,36 @@ def simulate_point(r, beta, args, settings, out_g, out_c):
                     Xn, stuck, signs, hctx, -1, betas, 1, cycles, used, out_g, out_c, amps, max_work
                 )
                 return Xn, stuck, signs, ctx[CX_ACTIVE]
+            if small_run >= CREEP_WINDOW and stuck != ctx[CX_ACTIVE]:
+                # every contact's slips small, some contact sliding at the section: the
+                # stuck structure's rule at a section where every contact is stuck
+                code, X, stuck, signs, used_cycles, status, used_work = shifted.settle_shifted(
+                    Xn, stuck, signs, ctx, max_cycles - cycles, max_work - work, amps
+                )
+                cycles += used_cycles
+                work += used_work
+                if code == shifted.SHIFT_FAULT:
+                    undetermined(out_g, out_c, status, cycles, used)
+                    return X, stuck, signs, 0
+                if code == shifted.SHIFT_SETTLED:
+                    hctx = creep.held_context(ctx, ctx[CX_ACTIVE])
+                    finish(X, stuck, signs, hctx, 1, cycles, used, out_g, out_c, max_work)
+                    settle(
+                        X, stuck, signs, hctx, -1, betas, 1, cycles, used, out_g, out_c, amps,
+                        max_work,
+                    )  # fmt: skip
+                    return X, stuck, signs, ctx[CX_ACTIVE]
+                # no creep there: the iteration goes on from the section, afresh
+                for c in range(k):
+                    cst[c, CS_STICK_START] = -1e300 if (stuck >> c) & 1 else 0.0
+                runs[:, :] = 0
+                prev_drift[:] = 0
+                drift[:] = 0.0
+                small_run = 0
+                quiet_run = 0
+                X1 = X + 1e300
+                X2 = X1
+                continue
             if held == ctx[CX_ACTIVE]:
                 held = 0  # every contact creeps: the stuck structure's window decides
             if held != 0 and not creep.swing_certified(
