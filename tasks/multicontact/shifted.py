@@ -190,4 +190,4 @@ def settle_shifted(X, stuck, signs, ctx, max_cycles, max_work, amps):
             return SHIFT_SETTLED, X0, st0, s, cycles, status, work
     X0, st0, status = _advance(Xs, st, s, ctx, tau_s, TWO_PI, max_work)
     code = SHIFT_FAULT if status != 0.0 else SHIFT_NONE
-    return code, X0, st0, s, cycles + 1, status, work
+    return code, X0, st0, s, cycles, status, work  # the advance ends the last cycle
