@@ -322,13 +322,18 @@ def base_influence(scene: Scene) -> np.ndarray | None:
     Under a base load (a base-fixed wall, Eq. 98, or a structure's ``("base", u)``,
     docs/structures.md 1) the simulator's coordinates z are relative to the
     supports and the absolute displacement is ``z + u cos(tau)``; a chain's u is
-    all ones.
+    all ones. NaN where the design pass cannot give that absolute displacement: a
+    u_i other than 0 and 1 where the kernel runs on the pairs of damping that is not
+    proportional (:func:`tasks.kernel.design.other_frame`: no modes of (K, M) there).
     """
     if not scene.load_scales_r2:
         return None
     if scene.structure is None:
         return np.ones(scene.dof)
-    return np.asarray(scene.structure.load_spec[1], dtype=np.float64)
+    u = np.asarray(scene.structure.load_spec[1], dtype=np.float64)
+    if scene_modes_cached(scene).kernel_args()[6].shape[0] == scene.dof:  # modes Phi
+        return u
+    return np.where((u == 0.0) | (u == 1.0), u, np.nan)
 
 
 def design_fields(
@@ -337,10 +342,10 @@ def design_fields(
     """The design quantities of :data:`tasks.result.FIELDS` from the kernel's columns
     (all None when ``design`` is None: not computed).
 
-    The kernel samples each coordinate q_i and, under a base load, ``q_i + cos(tau)``
-    (``base``: :func:`base_influence`). That is the absolute displacement where
-    u_i = 1; where u_i = 0 the absolute displacement is q_i itself; any other u_i
-    (a reduced model's support mode) leaves the absolute amplitude NaN, not
+    The kernel samples each coordinate q_i and, under a base load, the absolute
+    displacement ``q_i + u_i cos(tau)`` (``base``: :func:`base_influence`;
+    :func:`tasks.kernel.design.other_frame`); where u_i = 0 that is q_i itself. A
+    NaN u_i (the kernel could not weigh it) leaves the absolute amplitude NaN, not
     computed, rather than a wrong number.
     """
     if design is None:
@@ -351,7 +356,7 @@ def design_fields(
         absolute, relative = own, other
     else:
         relative = own
-        absolute = np.where(base == 1.0, other, np.where(base == 0.0, own, np.nan))
+        absolute = np.where(base == 0.0, own, np.where(np.isnan(base), np.nan, other))
     return {
         "amplitude": absolute.reshape((*shape, n)),
         "amplitude_relative": relative.reshape((*shape, n)),

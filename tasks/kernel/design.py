@@ -56,7 +56,8 @@ from tasks.kernel.starts import _held_response
 
 # Columns of :func:`orbit_designs`'s output, per point (n = number of masses):
 # [0, n) amplitude of the scene coordinate q_i (x_i; z_i = x_i - y for a base-fixed wall),
-# [n, 2n) amplitude of the other coordinate q_i - c cos(tau) (c = -1 base-fixed, else +1),
+# [n, 2n) amplitude of the other coordinate q_i - c_i cos(tau) (:func:`other_frame`: the
+# absolute z_i + u_i cos(tau) under a base load, x_i - cos(tau) under a force load),
 # 2n the contact force amplitude, 2n + 1 the energy dissipated per excitation cycle by
 # the contact, 2n + 2 the energy dissipated per excitation cycle by the viscous damping.
 DESIGN_FORCE = 0  # offset from 2 n
@@ -83,6 +84,46 @@ MODE_SAMPLES = 4.0
 #: Samples per excitation cycle at most (very stiff chains: the modes far above
 #: the excitation are then resolved only as far as this allows).
 DESIGN_MAX_SAMPLES = 4096
+
+
+@njit(cache=True)
+def other_frame(scene, n):
+    """The coefficients ``c_i`` of the other frame's coordinate ``q_i - c_i cos tau``.
+
+    A force load: ``c_i = 1`` (``x_i - cos tau``, relative to a moving base). A base
+    load ``p = r^2 M u`` (docs/theory.md 2, Eq. 98; docs/structures.md 1): the
+    coordinates are relative to the supports and the absolute displacement is ``z_i
+    + u_i cos tau``, so ``c_i = -u_i``, with ``u = Phi Phi^T p_hat`` (the modes
+    ``Phi`` of ``(K, M)`` with ``Phi^T M Phi = I``, so ``Phi Phi^T = M^-1``, and
+    ``p_hat = M u`` the load before its factor ``r^2``: ``scene[3]``). An influence
+    within ``1e-9 max |u|`` of 1 is taken as exactly 1 (``c_i = -1``: the samples of
+    ``z_i + cos tau``, a chain's and a translation's).
+    Under damping that is not proportional the modes are the pairs' (no ``Phi``):
+    ``c_i = -1`` for every DOF, and a DOF with another ``u_i`` has no absolute
+    amplitude (:func:`tasks.classifier.design_fields`).
+    """
+    c = np.ones(n)
+    if not scene[4]:
+        return c
+    c[:] = -1.0
+    phi = scene[6]
+    if phi.shape[0] != n:  # the pairs of non-proportional damping
+        return c
+    p_hat = scene[3]
+    modal = np.zeros(n)
+    for k in range(n):
+        for j in range(n):
+            modal[k] += phi[j, k] * p_hat[j]
+    u = np.zeros(n)
+    top = 0.0
+    for i in range(n):
+        for k in range(n):
+            u[i] += phi[i, k] * modal[k]
+        top = max(top, abs(u[i]))
+    for i in range(n):
+        if abs(u[i] - 1.0) > 1e-9 * top:
+            c[i] = -u[i]
+    return c
 
 
 @njit(**LEAF)
@@ -154,7 +195,7 @@ def orbit_design_recorded(r, beta, scene, settings, state, period, samples, dout
     """
     ctx, work = _context(r, beta, scene, settings)[:2]
     n = (state.shape[0] - 2) // 2
-    c = -1.0 if scene[4] else 1.0  # other frame: z + cos tau (base) or x - cos tau
+    c = other_frame(scene, n)  # other frame: z + u cos tau (base) or x - cos tau
     p = ctx[CTX_P]
     K = ctx[CTX_K]
     b = ctx[CTX_B]
@@ -176,7 +217,7 @@ def orbit_design_recorded(r, beta, scene, settings, state, period, samples, dout
                 cos_v[i] += V[n + i, k] * P + V[n + i, n + k] * Q
                 sin_v[i] += V[n + i, k] * Q - V[n + i, n + k] * P
             dout[i] = math.hypot(vc, vs)
-            dout[n + i] = math.hypot(vc - c, vs)
+            dout[n + i] = math.hypot(vc - c[i], vs)
         dout[2 * n + DESIGN_FORCE] = 0.0
         dout[2 * n + DESIGN_DISSIPATION] = 0.0
         visc = 0.0
@@ -196,7 +237,7 @@ def orbit_design_recorded(r, beta, scene, settings, state, period, samples, dout
                 vc += phi[i, k] * P
                 vs += phi[i, k] * Q
             dout[i] = math.hypot(vc, vs)
-            dout[n + i] = math.hypot(vc - c, vs)
+            dout[n + i] = math.hypot(vc - c[i], vs)
         dout[2 * n + DESIGN_FORCE] = 0.0
         dout[2 * n + DESIGN_DISSIPATION] = 0.0
         dout[2 * n + DESIGN_VISCOUS] = _harmonic_viscous(seg, r)
@@ -209,7 +250,7 @@ def orbit_design_recorded(r, beta, scene, settings, state, period, samples, dout
             for k in range(n):
                 v += phi[i, k] * seg[LOAD_COS, k] / (seg[OMEGA, k] ** 2 - 1.0)
             dout[i] = abs(v)
-            dout[n + i] = abs(v - c)
+            dout[n + i] = abs(v - c[i])
         dout[2 * n + DESIGN_FORCE] = 0.0
         dout[2 * n + DESIGN_DISSIPATION] = 0.0
         dout[2 * n + DESIGN_VISCOUS] = 0.0
@@ -324,7 +365,8 @@ def _amplitudes(ctx, work, rec, taus, states, cos_t, sin_t, c, dout):
     """Amplitudes (half peak-to-peak) of every coordinate in both frames into ``dout[:2 n]``.
 
     ``states`` are the exact states at the sample times ``taus`` (``cos_t``, ``sin_t``
-    their cosines and sines), ``c`` the other frame's sign (``q_i - c cos tau``).
+    their cosines and sines), ``c`` the other frame's coefficients (``q_i - c_i cos
+    tau``, :func:`other_frame`).
     The extrema between samples are located on the cubic Hermite interpolant
     (:func:`_hermite_extremes`); the interpolated smallest and largest value of each
     coordinate are then evaluated exactly, all in one pass over the records.
@@ -341,8 +383,8 @@ def _amplitudes(ctx, work, rec, taus, states, cos_t, sin_t, c, dout):
         ta = taus[s]
         tb = taus[s + 1]
         for which in range(2):
-            cf = 0.0 if which == 0 else -c
             for i in range(n):
+                cf = 0.0 if which == 0 else -c[i]
                 ya = states[s, i] + cf * cos_t[s]
                 yb = states[s + 1, i] + cf * cos_t[s + 1]
                 va = states[s, n + i] - cf * sin_t[s]
@@ -358,7 +400,7 @@ def _amplitudes(ctx, work, rec, taus, states, cos_t, sin_t, c, dout):
     for pos in range(4 * n):
         col = order[pos] // 2
         i = col % n
-        cf = 0.0 if col < n else -c
+        cf = 0.0 if col < n else -c[i]
         y = exact[pos, i] + cf * math.cos(times[order[pos]])
         acc[col, 4] = min(acc[col, 4], y)
         acc[col, 5] = max(acc[col, 5], y)
@@ -391,7 +433,7 @@ def _held_design(ctx, state, period, c, dout):
 
     The held steady state (:func:`tasks.kernel.starts._held_response`, undamped)
     is ``x_h(tau) = x_h(0) cos tau`` with the contact stuck at zero relative
-    displacement, so its amplitudes are ``|x_h,i(0)|`` and ``|x_h,i(0) - c|``,
+    displacement, so its amplitudes are ``|x_h,i(0)|`` and ``|x_h,i(0) - c_i|``,
     its contact force amplitude ``|g_h(0)|`` (``g_h(tau) = g_h(0) cos tau``) and
     it dissipates nothing (no slip, no damping). Applies only when ``state`` is
     exactly that orbit at its section (stuck, ``theta = 0``, period 1, the held
@@ -409,7 +451,7 @@ def _held_design(ctx, state, period, c, dout):
             return False
     for i in range(n):
         dout[i] = abs(X_held[i])
-        dout[n + i] = abs(X_held[i] - c)
+        dout[n + i] = abs(X_held[i] - c[i])
     g0 = _contact_force(ctx[CTX_P], 1.0, ctx[CTX_K], X_held[:n], ctx[CTX_G_LOAD])
     dout[2 * n + DESIGN_FORCE] = abs(g0)
     dout[2 * n + DESIGN_DISSIPATION] = 0.0

@@ -180,7 +180,7 @@ def _polish_harmonic(ctx, work, loaded, mod, pol, col, c, t):
     modal_to_state(stick, d0, pol[0, :m], pol[1, :m], pol[4], pol[5], phi, phi_s, T, w_s, q, off)
     modal_to_state(stick, 0.0, pol[2, :m], pol[3, :m], pol[6], pol[7], phi, phi_s, T, w_s, q, off)
     i = col % n
-    cf = 0.0 if col < n else -c
+    cf = 0.0 if col < n else -c[i]
     return (t, pol[4, i] + cf * ct, pol[5, i] - cf * st, pol[6, i] - cf * ct, pol[7, i] + cf * st)
 
 
@@ -189,8 +189,8 @@ def orbit_extrema(ctx, work, rec, h, c, dout):
     """Amplitudes of every coordinate in both frames into ``dout[:2 n]``.
 
     ``rec``: the orbit's records (every event, exact states); ``h``: the largest
-    sample spacing inside a phase; ``c``: the other frame's sign (its coordinate is
-    ``q_i - c cos tau``). Returns the number of samples taken.
+    sample spacing inside a phase; ``c``: the other frame's coefficients (its
+    coordinate is ``q_i - c_i cos tau``). Returns the number of samples taken.
     """
     n = (rec.shape[1] - REC_X) // 2
     nr = rec.shape[0]
@@ -292,7 +292,7 @@ def orbit_extrema(ctx, work, rec, h, c, dout):
             total += 1
             for col in range(ncol):
                 i = col % n
-                cf = 0.0 if col < n else -c
+                cf = 0.0 if col < n else -c[i]
                 y = x[i] + cf * ct
                 v = xd[i] - cf * st
                 if exact:
@@ -371,7 +371,7 @@ def orbit_extrema(ctx, work, rec, h, c, dout):
             k = order[pos]
             col = int(which[k, 0])
             i = col % n
-            cf = 0.0 if col < n else -c
+            cf = 0.0 if col < n else -c[i]
             t = times[k]
             cos_t = math.cos(t)
             sin_t = math.sin(t)

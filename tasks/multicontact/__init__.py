@@ -7,6 +7,13 @@ docs/contacts.md is the theory and the rules. Modules, one job each:
 * :mod:`~tasks.multicontact.decide`: which contacts stick or slide after an event;
 * :mod:`~tasks.multicontact.cycle`: one cycle, event by event (the single-contact
   kernel's closed-form propagation and event search, one observable per contact);
+* :mod:`~tasks.multicontact.held`: the held forced response and its margins;
+* :mod:`~tasks.multicontact.starts`: the start of a point (held, rest, random);
+* :mod:`~tasks.multicontact.section`: the Poincare section: periods run from it,
+  Newton on its map, the polish of a converged section state;
+* :mod:`~tasks.multicontact.creep`: the settling rule of a creep in progress;
+* :mod:`~tasks.multicontact.shifted`: that rule, every contact stuck, at a shifted section;
+* :mod:`~tasks.multicontact.fields`: the result fields of a converged period;
 * :mod:`~tasks.multicontact.steady`: steady state of a point, many points;
 * :mod:`~tasks.multicontact.classify`: :func:`classify_multi` and its result;
 * :mod:`~tasks.multicontact.reference`: an independent scipy integrator.

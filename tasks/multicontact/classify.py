@@ -129,7 +129,7 @@ def classify_multi(
     Parameters as :func:`tasks.classify`; contact c has friction
     ``beta_ratio[c] * beta``. Starts: ``initial_condition`` / ``starts`` of
     "held" and "rest", and ``n_random`` seeded random starts
-    (:func:`tasks.multicontact.steady.random_start`); ``start_dependent`` flags a
+    (:func:`tasks.multicontact.starts.random_start`); ``start_dependent`` flags a
     point where two starts reached different regimes.
 
     Raises

@@ -11,7 +11,8 @@ cases:
   (:func:`tasks.kernel.creep.creep_settled`: most cycles of the window without an
   event, or every contact drifting one way through it, and the stuck section's force
   bound at most ``(1 + CREEP_FORCE_RTOL) beta_c`` for every contact;
-  :func:`all_stuck_settled`);
+  :func:`all_stuck_settled`; measured at a shifted section where every contact is
+  stuck when one slides at ``tau = 2 pi n``: :mod:`tasks.multicontact.shifted`);
 * others move: the motion is continued with H held (:func:`held_context`) to its
   periodic orbit; H reaches no motion when each held contact's force swings by at
   most ``2 (1 - CREEP_FORCE_RTOL) beta_c`` over that period (:func:`swing_certified`):
@@ -152,8 +153,8 @@ def creeping(runs, refused):
 
 
 @njit(cache=True)
-def all_stuck_settled(X, stuck, signs, ctx):
-    """Every contact with friction stuck at the section and its stick force bound
+def all_stuck_settled(X, stuck, signs, ctx, tau):
+    """Every contact with friction stuck at the section ``tau`` and its stick force bound
     (:func:`tasks.kernel.events.stick_force_bound`) at most ``(1 + CREEP_FORCE_RTOL)
     beta_c``: the single-contact rule (:func:`tasks.kernel.creep.creep_settled`) for
     each contact of the stuck structure."""
@@ -169,7 +170,7 @@ def all_stuck_settled(X, stuck, signs, ctx):
     etad0 = np.zeros(n)
     zeroed = np.zeros(k, dtype=np.bool_)
     x = X[:n].copy()
-    start_phase(x, X[n:].copy(), 0.0, stuck, signs, zeroed, ctx, segs, scs, d, eta0, etad0)
+    start_phase(x, X[n:].copy(), tau, stuck, signs, zeroed, ctx, segs, scs, d, eta0, etad0)
     betas = ctx[CX_BETAS]
     for c in range(k):
         if (active >> c) & 1:
