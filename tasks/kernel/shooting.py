@@ -91,10 +91,10 @@ STABLE_RADIUS = 1.0 + 1e-6
 # norm, that it reads as a lower bound of the spectral radius.
 RADIUS_SQUARINGS = 40
 TRACE_RTOL = 1e-2
-# Smallest tolerance of the contact test of an accepted fixed point (:func:`contact_within`),
-# relative to the contact's motion: the polish's 1e-12 is for the section state, at
-# whose rounding the contact's own motion (a difference of coordinates) is known only to
-# about 1e-13 of itself.
+# Smallest tolerance of the distance to an accepted fixed point (:func:`_near_fixed_point`),
+# relative to the motion, and of its contact test (:func:`contact_within`), relative to
+# the contact's motion: the polish's 1e-12 is a residual at the rounding of the map,
+# and Newton's step from it is that over one minus the slowest Floquet multiplier.
 CONTACT_RTOL = 1e-10
 
 
@@ -578,14 +578,19 @@ def _near_fixed_point(J, R, tol, ctx, mode, amp, rtol):
     shrinking over 2,500 periods), with a residual of 4e-9 of the motion and the
     fixed point 5e2 times farther: accepted on its residual, it was a stick-slip
     orbit below the exact continuous bound. The step must be within ``tol``, as
-    the plain iteration's ``diff / (1 - rho)``. A singular ``J`` (a multiplier of
+    the plain iteration's ``diff / (1 - rho)`` (within ``CONTACT_RTOL`` of the
+    motion where ``rtol`` is smaller: the polish and the warm starts, whose
+    residual of 1e-12 is at the map's rounding). A singular ``J`` (a multiplier of
     exactly 1, no isolated fixed point) leaves the decision to the residual and
     the stability test.
     """
     step = _solve(J, -R)
     if not np.all(np.isfinite(step)):
         return True
-    return _max_abs(step) <= tol and contact_within(ctx, step, mode, amp, rtol)
+    # (a polish's 1e-12 residual is at the rounding of the map: its step need only
+    # be within CONTACT_RTOL, far below any label's resolution)
+    reach = max(tol, CONTACT_RTOL / rtol * tol) if rtol > 0.0 else tol
+    return _max_abs(step) <= reach and contact_within(ctx, step, mode, amp, rtol)
 
 
 @njit(cache=True)
