@@ -59,6 +59,7 @@ from tasks.kernel.monodromy import exact_jacobian
 from tasks.kernel.phases import _dot, _slip_state, _start_slip, _stick_state, start_stick_in
 from tasks.kernel.propagation import evaluate
 from tasks.kernel.starts import start_phase
+from tasks.regimes import SLIP_RTOL
 
 # Rows of the event record a shooting period keeps (:func:`_period_recorded`); a
 # period with more events differences its Jacobian columns over full periods.
@@ -538,7 +539,8 @@ def contact_scale(ctx, amp):
 def contact_within(ctx, D, mode, amp, rtol):
     """Whether a change ``D`` of the section state moves the contact by at most
     ``max(rtol, CONTACT_RTOL) * contact_scale`` (displacement ``b . x`` and velocity
-    ``b . x'``; ``D`` in the chart of ``mode``, :func:`_reduce`).
+    ``b . x'``; ``D`` in the chart of ``mode``, :func:`_reduce`), or by less than
+    the creep threshold ``SLIP_RTOL * beta c`` (:func:`tasks.kernel.creep.creep_threshold`).
 
     The regime is decided at the contact (a stop, a stick while ``|g| <= beta``),
     whose motion can be far smaller than the section state: a tiny mass between
@@ -562,7 +564,10 @@ def contact_within(ctx, D, mode, amp, rtol):
             dx += b[i] * D[i]
             dv += b[i] * D[n + i]
         moved = max(abs(dx), abs(dv))
-    return moved <= max(rtol, CONTACT_RTOL) * scale
+    # (and never below the creep threshold, SLIP_RTOL beta c: a contact moving less
+    # is not moving, docs/theory.md 3; a creep settling onto no motion is decided so)
+    floor = SLIP_RTOL * contact_scale(ctx, 0.0)
+    return moved <= max(max(rtol, CONTACT_RTOL) * scale, floor)
 
 
 @njit(cache=True)
