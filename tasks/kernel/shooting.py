@@ -551,8 +551,8 @@ def contact_within(ctx, D, mode, amp, rtol):
     exact continuous bound.
     """
     scale = contact_scale(ctx, amp)
-    if scale == 0.0:
-        return True
+    if scale == 0.0 or amp < SLIP_RTOL * contact_scale(ctx, 0.0):
+        return True  # (no contact test; or slips below the creep threshold: no motion)
     b = ctx[CTX_B]
     n = b.shape[0]
     if mode == 0:
@@ -589,6 +589,8 @@ def _near_fixed_point(J, R, tol, ctx, mode, amp, rtol):
     exactly 1, no isolated fixed point) leaves the decision to the residual and
     the stability test.
     """
+    if amp < SLIP_RTOL * contact_scale(ctx, 0.0):
+        return True  # slips below the creep threshold: no motion, the creep rule decides
     step = _solve(J, -R)
     if not np.all(np.isfinite(step)):
         return True
