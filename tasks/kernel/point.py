@@ -64,6 +64,7 @@ from tasks.kernel.shooting import (
     SETTLE_PHASES,
     _same_chart,
     _shoot,
+    contact_within,
     settle_at_phases,
 )
 from tasks.kernel.starts import _held_response, held_margin, start_phase
@@ -274,7 +275,12 @@ def simulate_point(r, beta, scene, settings, out, final, keep, kept):
         ):
             rho = diff / diff_prev if diff_prev > 0.0 else 0.0
             err = diff / (1.0 - min(rho, 0.999))
-            if err <= section_rtol * max(scale, ref) or diff <= 1e-13 * scale:
+            # ... at the contact too, whose motion can be far smaller (shooting.py)
+            amp = 0.5 * (stats[ST_DMAX] - stats[ST_DMIN])
+            moved = (X - X_prev) / (1.0 - min(rho, 0.999))
+            settled = err <= section_rtol * max(scale, ref)
+            settled = settled and contact_within(ctx, moved, 1, amp, section_rtol)  # (full X)
+            if settled or diff <= 1e-13 * scale:
                 final[: 2 * n] = X_prev
                 final[2 * n] = mode_prev
                 _finish(out, stats, stats_prev, 1, cycles, ic_used)
@@ -284,7 +290,12 @@ def simulate_point(r, beta, scene, settings, out, final, keep, kept):
         if cycles >= min_cycles + 1 and _same_chart(mode, mode_prev2):
             diff2 = _max_abs_diff(X, X_prev2)
             tol2 = section_rtol * max(scale, ref)
-            if diff2 <= tol2 and diff > 10.0 * tol2:
+            amp = 0.5 * (stats[ST_DMAX] - stats[ST_DMIN])
+            if (
+                diff2 <= tol2
+                and diff > 10.0 * tol2
+                and contact_within(ctx, X - X_prev2, 1, amp, section_rtol)
+            ):
                 final[: 2 * n] = X_prev2
                 final[2 * n] = mode_prev2
                 _finish(out, stats, stats_prev, 2, cycles, ic_used)
