@@ -170,8 +170,8 @@ def assert_documented_lines_ran(lines, procs, where: str = "") -> None:
 # pyproject.toml). Each test file is one group, run whole by one worker, so a
 # module-scoped fixture (a module's CLI run) runs once; files sharing a costly
 # session fixture are one group, so it is set up once. Groups start longest first
-# (seconds measured warm on 2 cores; an unlisted file counts as short): the last
-# groups are short, and neither worker waits long for the other at the end.
+# (rough seconds of a warm run on 2 cores; an unlisted file counts as short): the
+# last groups are short, and neither worker waits long for the other at the end.
 #: Files run together by one worker: the files that use ``documented_runs``, and
 #: the files that start real Dask processes, kill or interrupt them (loopback only),
 #: so no two of those run at the same time (a timed SIGINT or a worker timeout does
@@ -191,7 +191,7 @@ SHARED_GROUPS = {
         "test_work_folder_faults.py",
     ),
 }
-#: Seconds per group (warm, 2 cores): the order in which groups are handed out.
+#: Rough seconds per group (warm, 2 cores): only the order the groups are handed out in.
 GROUP_SECONDS: dict[str, float] = {
     "processes": 250,
     "documented": 60,
