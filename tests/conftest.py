@@ -10,6 +10,11 @@ import sys
 from collections.abc import Iterator
 from pathlib import Path
 
+try:
+    import fcntl
+except ImportError:  # not POSIX: no compile ahead of the tests (each test compiles)
+    fcntl = None
+
 import pytest
 
 #: Test data kept in the repository (see tests/data/README.md).
@@ -158,3 +163,112 @@ def assert_documented_lines_ran(lines, procs, where: str = "") -> None:
     for line, proc in zip(lines, procs, strict=False):
         assert proc.returncode == 0, f"{where}: {line}\n{proc.stderr[-3000:]}"
     assert len(procs) == len(lines), where
+
+
+# ------------------------------------------------------------------ parallel runs
+# The suite runs in 2 worker processes (pytest-xdist, ``-n 2 --dist loadgroup`` in
+# pyproject.toml). Each test file is one group, run whole by one worker, so a
+# module-scoped fixture (a module's CLI run) runs once; files sharing a costly
+# session fixture are one group, so it is set up once. Groups start longest first
+# (rough seconds of a warm run on 2 cores; an unlisted file counts as short): the
+# last groups are short, and neither worker waits long for the other at the end.
+#: Files run together by one worker: the files that use ``documented_runs``, and
+#: the files that start real Dask processes, kill or interrupt them (loopback only),
+#: so no two of those run at the same time (a timed SIGINT or a worker timeout does
+#: not meet a second cluster on the 2 cores).
+SHARED_GROUPS = {
+    "documented": ("test_docs.py", "test_study_structures.py"),
+    "processes": (
+        "test_adaptive.py",
+        "test_adaptive_client.py",
+        "test_adaptive_sample.py",
+        "test_adaptive_tiles.py",
+        "test_door_faults.py",
+        "test_door_tiles_resume.py",
+        "test_layout.py",
+        "test_reliability_faults.py",
+        "test_study_cluster.py",
+        "test_work_folder_faults.py",
+    ),
+}
+#: Rough seconds per group (warm, 2 cores): only the order the groups are handed out in.
+GROUP_SECONDS: dict[str, float] = {
+    "processes": 250,
+    "documented": 60,
+    "test_general_damping.py": 30,
+    "test_steady_states.py": 25,
+}
+#: Precompile only for a run of (most of) the suite: a few tests compile what they use.
+PRECOMPILE_MIN_TESTS = 200
+
+
+def _group(path: Path) -> str:
+    for group, files in SHARED_GROUPS.items():
+        if path.name in files:
+            return group
+    return path.name
+
+
+def pytest_collection_modifyitems(config, items) -> None:
+    """One ``xdist_group`` per file (or :data:`SHARED_GROUPS`); under xdist, the groups
+    ordered longest first (:data:`GROUP_SECONDS`), the order inside each kept."""
+    groups = {}
+    for item in items:
+        group = _group(item.path)
+        item.add_marker(pytest.mark.xdist_group(group))
+        groups.setdefault(group, []).append(item)
+    if getattr(config.option, "loadgroup", False):  # an xdist worker
+        order = sorted(groups, key=lambda g: -GROUP_SECONDS.get(g, 0.0))
+        items[:] = [item for group in order for item in groups[group]]
+
+
+def pytest_collection_finish(session) -> None:
+    """Compile the simulators not yet cached, both at once in two subprocesses, before
+    the first test of a run of the suite (:data:`PRECOMPILE_MIN_TESTS`).
+
+    Without it, each of the 2 workers compiles the one-contact kernel (and then the
+    several-contact one) at its first simulation: twice the work on the same 2 cores.
+    The first worker here takes a lock in the cache folder and compiles; the other
+    waits for it, then finds the cache filled. Each compile runs
+    :func:`tasks.numba_cache.compile_simulator` in its own process, as ``study run``
+    compiles in the client. The tests of the first compile replace the compile by a
+    recorder (tests/test_first_compile.py) or run in a fresh cache folder
+    (tests/test_kernel_cache.py): a filled cache changes none of them.
+    """
+    if fcntl is None or session.config.option.collectonly:
+        return
+    if len(session.items) < PRECOMPILE_MIN_TESTS:
+        return
+    import numba.core.config
+
+    from tasks import numba_cache
+
+    if numba.core.config.DISABLE_JIT:
+        return
+    base = Path(numba_cache.cache_dir()).parent
+    base.mkdir(parents=True, exist_ok=True)
+    with open(base / "precompile.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # the other worker waits here
+        try:
+            missing = [k for k in numba_cache.KERNELS if not numba_cache.is_compiled(k)]
+            procs = [
+                subprocess.Popen(
+                    [sys.executable, "-c", PRECOMPILE.format(kernel=kernel)],
+                    cwd=ROOT,
+                    env=docs_env(),
+                    stdout=subprocess.DEVNULL,
+                    stderr=subprocess.PIPE,
+                    text=True,
+                )
+                for kernel in missing
+            ]
+            for kernel, proc in zip(missing, procs, strict=True):
+                _, err = proc.communicate()
+                if proc.returncode:  # the tests that simulate compile, and fail, again
+                    print(f"conftest: compiling {kernel} failed:\n{err[-2000:]}", file=sys.stderr)
+        finally:
+            fcntl.flock(lock, fcntl.LOCK_UN)
+
+
+#: One subprocess compile (:func:`pytest_collection_finish`).
+PRECOMPILE = "from tasks import numba_cache; numba_cache.compile_simulator({kernel!r})"
