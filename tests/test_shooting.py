@@ -1,6 +1,6 @@
 """The stability test of shooting (docs/simulator.md 5.2): spectral radius at most 1 + 1e-6.
 
-:func:`tasks.kernel.shooting.radius_within` decides it from norms of powers of the
+:func:`tasks.kernel.acceptance.radius_within` decides it from norms of powers of the
 Jacobian where they prove it and from the eigenvalues otherwise; its answer must
 be the eigenvalues' (numpy's, an independent computation) on matrices of every
 kind a fixed point can have: contracting and normal, contracting but strongly
@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tasks.kernel.shooting import STABLE_RADIUS, radius_within
+from tasks.kernel.acceptance import STABLE_RADIUS, radius_within
 
 
 def _with_spectrum(eigs: np.ndarray, rng: np.random.Generator, cond: float) -> np.ndarray:

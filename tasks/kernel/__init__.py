@@ -26,6 +26,8 @@ Modules, one job each (dependencies point down the list):
 * :mod:`~tasks.kernel.cycle`: one cycle event by event (:func:`run_cycle`), the Poincare map;
 * :mod:`~tasks.kernel.starts`: held, rest and random starts, the held margin;
 * :mod:`~tasks.kernel.shooting`: Newton's method on the Poincare map;
+* :mod:`~tasks.kernel.acceptance`: when a fixed point is accepted (Newton's step, the
+  contact's own motion, the stability radius);
 * :mod:`~tasks.kernel.context`: the per-point constants and initial state;
 * :mod:`~tasks.kernel.creep`: the creep rule;
 * :mod:`~tasks.kernel.outcome`: writing a point's fields;

@@ -18,6 +18,7 @@ import math
 import numpy as np
 from numba import njit
 
+from tasks.kernel.acceptance import contact_within
 from tasks.kernel.context import _context, motion_floor
 from tasks.kernel.creep import _asymptotic_no_motion, _creep_limit, creep_settled, creep_threshold
 from tasks.kernel.cycle import _advance, _cycle, _max_abs, _max_abs_diff
@@ -64,7 +65,6 @@ from tasks.kernel.shooting import (
     SETTLE_PHASES,
     _same_chart,
     _shoot,
-    contact_within,
     settle_at_phases,
 )
 from tasks.kernel.starts import _held_response, held_margin, start_phase
