@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import os
 import subprocess
 import sys
 import tempfile
@@ -1250,22 +1249,26 @@ INVALID: list[tuple[str, object, str, object]] = [
 ]
 
 
+def _study_run(path: Path, out: Path, timeout: float) -> subprocess.CompletedProcess:
+    """``study run PATH -o OUT --workers 1 --quiet`` with the ``study`` script of this
+    interpreter's environment, its output captured."""
+    return subprocess.run(
+        [str(Path(sys.executable).with_name("study")), "run", str(path), "-o", str(out)]
+        + ["--workers", "1", "--quiet"],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+    )
+
+
 def check_cli(rng: np.random.Generator, tmp: Path, n_invalid: int) -> None:
     import xarray as xr
 
-    env = dict(os.environ)
-    study_exe = str(Path(sys.executable).with_name("study"))
     scenes = _valid_scenes(rng)
     path = tmp / "valid.toml"
     path.write_text(_toml({"name": "audit", "fidelity": "fast"}, scenes))
     out = tmp / "valid.nc"
-    proc = subprocess.run(
-        [study_exe, "run", str(path), "-o", str(out), "--workers", "1", "--quiet"],
-        capture_output=True,
-        text=True,
-        env=env,
-        timeout=600,
-    )
+    proc = _study_run(path, out, timeout=600)
     if proc.returncode != 0:
         _count("cli valid", "MISMATCH", f"study run exit {proc.returncode}: {proc.stderr[-300:]}")
     else:
@@ -1292,13 +1295,7 @@ def check_cli(rng: np.random.Generator, tmp: Path, n_invalid: int) -> None:
         p = tmp / f"bad_{idx}.toml"
         p.write_text(_toml(study, bad))
         o = tmp / f"bad_{idx}.nc"
-        proc = subprocess.run(
-            [study_exe, "run", str(p), "-o", str(o), "--workers", "1", "--quiet"],
-            capture_output=True,
-            text=True,
-            env=env,
-            timeout=300,
-        )
+        proc = _study_run(p, o, timeout=300)
         lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
         leftovers = [f.name for f in tmp.iterdir() if f.name.startswith(f"bad_{idx}.nc")]
         good = (
@@ -1407,21 +1404,7 @@ def check_study(rng: np.random.Generator, tmp: Path) -> None:
     text = text.replace("\n[[scene]]", "\n[settings]\ndesign = true\n\n[[scene]]", 1)
     path.write_text(text)
     out = tmp / "study.nc"
-    proc = subprocess.run(
-        [
-            str(Path(sys.executable).with_name("study")),
-            "run",
-            str(path),
-            "-o",
-            str(out),
-            "--workers",
-            "1",
-            "--quiet",
-        ],
-        capture_output=True,
-        text=True,
-        timeout=900,
-    )
+    proc = _study_run(path, out, timeout=900)
     if proc.returncode != 0:
         _count("study", "MISMATCH", f"study run exit {proc.returncode}: {proc.stderr[-300:]}")
         return
@@ -1559,21 +1542,7 @@ def check_maps(rng: np.random.Generator, tmp: Path) -> None:
     path = tmp / "maps.toml"
     path.write_text(_toml({"name": "audit_maps", "fidelity": "balanced"}, [traced, adaptive]))
     out = tmp / "maps.nc"
-    proc = subprocess.run(
-        [
-            str(Path(sys.executable).with_name("study")),
-            "run",
-            str(path),
-            "-o",
-            str(out),
-            "--workers",
-            "1",
-            "--quiet",
-        ],
-        capture_output=True,
-        text=True,
-        timeout=1800,
-    )
+    proc = _study_run(path, out, timeout=1800)
     where = f"{scene.dof}DOF {spec}"[:600]
     if proc.returncode != 0:
         _count("trace", "MISMATCH", f"study run exit {proc.returncode}: {proc.stderr[-300:]}")
