@@ -582,6 +582,7 @@ def replay_main(args, n_r: int, n_beta: int) -> int:
         "% of the dense cycles (cycles ratio) |"
     )
     print("|" + "---|" * 10)
+    composition = {}
     for sc in cluster_scenes(args.scenes):
         scene, r, beta, dense = dense_fields(sc, n_r, n_beta, args.cache, args.fidelity)
         hint = None if args.hint == "none" else closed_form_hint(scene, r, beta, args.hint)
@@ -611,7 +612,51 @@ def replay_main(args, n_r: int, n_beta: int) -> int:
             a, b = maps.values()
             same = all(np.array_equal(a[k], b[k]) for k in a)
             print(f"| {sc['name']}: same map (every field, simulated, verification) | {same} |")
+        composition[sc["name"]] = _composition(maps[""], dense, args.coarse_step)
+    print()
+    print(
+        "where the simulated points lie (their dense cycles, % of the dense grid's): the "
+        "coarse lattice, the verification sample, the points next to a label change "
+        "(edge), the others (the refinement's points between); the cycles ratio of the "
+        "map without the others, and of the edge points it simulates alone"
+    )
+    print(
+        "| scene | lattice | sample | edge (of all edge points) | others | cycles ratio "
+        "without the others | edge only |"
+    )
+    print("|" + "---|" * 7)
+    for name, c in composition.items():
+        parts = " | ".join(
+            f"{c[k][0]:,}, {100 * c[k][1]:.2f}" for k in ("lattice", "sample", "edge", "other")
+        )
+        parts = parts.replace(f"{c['edge'][0]:,},", f"{c['edge'][0]:,} of {c['edges']:,},", 1)
+        without = c["lattice"][1] + c["sample"][1] + c["edge"][1]
+        print(f"| {name} | {parts} | {1 / without:.1f} | {1 / c['edge'][1]:.1f} |")
     return 0
+
+
+def _composition(out: dict, dense: dict, coarse_step: int) -> dict:
+    """The simulated points of a replayed map by kind (lattice, verification sample,
+    next to a label change of the dense grid, others), each as (points, share of the
+    dense grid's cycles)."""
+    from tasks.adaptive import coarse_nodes
+
+    sim = out["simulated"]
+    lattice = np.zeros(sim.shape, dtype=bool)
+    lattice[np.ix_(*(coarse_nodes(n, coarse_step) for n in sim.shape))] = True
+    sample = (out["verification"] > 0) & ~lattice
+    edge = next_to_change(dense)
+    kinds = {
+        "lattice": sim & lattice,
+        "sample": sample,
+        "edge": sim & edge & ~lattice & ~sample,
+        "other": sim & ~edge & ~lattice & ~sample,
+    }
+    cycles = dense["cycles"].astype(float)
+    total = cycles.sum()
+    c = {k: (int(m.sum()), float(cycles[m].sum() / total)) for k, m in kinds.items()}
+    c["edges"] = int(edge.sum())
+    return c
 
 
 def next_to_change(dense: dict[str, np.ndarray]) -> np.ndarray:
