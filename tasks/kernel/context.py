@@ -21,6 +21,7 @@ from tasks.kernel.layout import (
     CTX_K,
     CTX_P,
     CTX_PHI,
+    CTX_SC,
     CTX_SEG_SLIP,
     DAMP,
     DAMPED,
@@ -269,8 +270,13 @@ def motion_floor(ctx, X_held):
     excitation frequency, not its static ``a_k / Omega_k^2``: the static
     response would be a scale many orders of magnitude above the motion, and a
     tolerance relative to it would accept a transient of that mode still
-    creeping as a steady state (docs/simulator.md 5). Non-proportional damping
-    (modal pairs, docs/structures.md 4.5) keeps the static response.
+    creeping as a steady state (docs/simulator.md 5). A scene whose damping is not
+    proportional (damped pairs, docs/structures.md 4.5, no real modes) takes the same
+    response in the undamped modes of ``(K, Gamma)``, computed once per point
+    (:func:`_undamped_scales`, entry ``FLOOR`` of the context's scalars): it kept the
+    static response, and every preset accepted such a transient of a chain with a
+    dashpot (its period still moving by 0.43 / 0.11 / 8.8e-3 of the motion at
+    ``fast`` / ``balanced`` / ``exact``).
 
     Parameters
     ----------
@@ -287,10 +293,11 @@ def motion_floor(ctx, X_held):
     seg = ctx[CTX_SEG_SLIP]
     phi = ctx[CTX_PHI]
     n = seg.shape[1]
+    if phi.shape[0] != n:  # damped pairs: from the undamped modes (_undamped_scales)
+        return max(_max_abs(X_held), ctx[CTX_SC][FLOOR], 1e-300)
     soft = False
-    if phi.shape[0] == n:  # real modes (undamped or proportionally damped)
-        for k in range(n):
-            soft = soft or seg[OMEGA, k] < 1.0
+    for k in range(n):  # real modes (undamped or proportionally damped)
+        soft = soft or seg[OMEGA, k] < 1.0
     if soft:
         resp = np.zeros(n)
         for k in range(n):
