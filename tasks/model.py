@@ -121,8 +121,11 @@ class SceneModes:
         Then come the damping data (zeros when undamped): ``damp_slip``
         and ``damp_stick`` (``c_k = phi_k^T C phi_k`` of both phases), ``g_c``
         (``C^T g_load``) and ``g_c_s`` (``g_load^T C T phi_s``), docs/structures.md 4,
-        and two arrays that are empty unless the damping is not proportional:
-        ``C`` and the slip pairs' load matrix.
+        and four arrays that are empty unless the damping is not proportional:
+        ``C``, the slip pairs' load matrix, and ``lam`` and ``phi`` of the undamped
+        modes of ``(K, Gamma)`` (their place is taken by the pairs), from which the
+        contact's compliance at the excitation frequency and the motion floor are
+        computed as for real modes (docs/simulator.md 5, 7).
 
         Non-proportional damping (docs/structures.md 4.5) replaces the modal
         arrays by those of the pairs of :mod:`tasks.damped_pairs` (``pairs``):
@@ -170,6 +173,8 @@ class SceneModes:
             float(self.g_d0),
             *damping_arrays,
             np.zeros((0, 0)),
+            np.zeros((0, 0)),
+            np.zeros(0),
             np.zeros((0, 0)),
         )
 
@@ -281,6 +286,8 @@ def _pairs_args(modes: SceneModes, C: np.ndarray) -> tuple:
         gkt @ Vs[:m, m:] + gct @ Vs[m:, m:],
         C,
         slip.load_nu,
+        modes.lam,
+        modes.phi,
     )
 
 

@@ -98,6 +98,31 @@ def test_pairs_of_rayleigh_damping_classify_like_the_modes(name, monkeypatch):
     )
 
 
+@pytest.mark.parametrize(("name", "r"), [("2dof_ground_m1", 30.0), ("2dof_base_m2", 12.0)])
+def test_pairs_take_the_creep_threshold_of_the_modes_above_the_natural_frequencies(
+    name, r, monkeypatch
+):
+    """Just below the motion bound, above both natural frequencies, the slips are tiny
+    (about (1 - beta / bound)^2 of the inertial deflection) and the creep threshold
+    decides them; forced through the pairs the same Rayleigh C gives the modal kernel's
+    labels: stick-slip below the bound (docs/structures.md 3.1: no stuck steady state
+    there), no motion above. The pairs took the static compliance, r^2 / lambda times
+    the compliance at the excitation frequency, and called the slips no motion."""
+    scene = Scene.from_matrices(
+        **{**CONFIGURATIONS[name].matrices(), "damping": ("rayleigh", 0.1, 0.02)}
+    )
+    mb = float(closed_form.motion_bound(scene, np.array([r]))[0])
+    beta = mb * np.array([0.99, 0.995, 0.999, 1.001])
+    rr = np.full(beta.size, r)
+    modal = classify(scene, rr, beta)
+    assert modal.regime.tolist() == [regimes.STICK_SLIP] * 3 + [regimes.NO_MOTION]
+    monkeypatch.setattr(classifier, "scene_modes_cached", _through_pairs)
+    general = classify(scene, rr, beta)
+    assert general.converged.all()
+    np.testing.assert_array_equal(general.regime, modal.regime)
+    np.testing.assert_allclose(general.slip_amplitude, modal.slip_amplitude, rtol=1e-6)
+
+
 def test_full_matrix_rayleigh_classifies_as_rayleigh():
     """A proportional C given as a full matrix takes the modal path and classifies
     exactly as the same C given by its Rayleigh coefficients."""

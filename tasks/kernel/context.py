@@ -17,13 +17,16 @@ from tasks.kernel.cycle import _max_abs
 from tasks.kernel.events import DIP_STACK
 from tasks.kernel.layout import (
     ALPHA,
+    COMPLIANCE,
     CTX_K,
     CTX_P,
     CTX_PHI,
+    CTX_SC,
     CTX_SEG_SLIP,
     DAMP,
     DAMPED,
     DELTA,
+    FLOOR,
     LOAD_COS,
     N_ROWS,
     N_SCALARS,
@@ -55,6 +58,44 @@ def _scaled_pairs_map(A, r):
         for j in range(2 * h):
             out[i, j] = A[i, j] * (r if j >= h else 1.0) / (r if i >= h else 1.0)
     return out
+
+
+@njit(cache=True)
+def _undamped_scales(K, b, p, lam, phi, r):
+    """The contact's compliance at the excitation frequency and the largest entry of
+    the motion floor's response, from the undamped modes ``(lam, phi)`` of ``(K, Gamma)``
+    (``phi^T Gamma phi = I``), for a scene whose damping is not proportional (its
+    phases run on damped pairs, which have no real modes: docs/structures.md 4.5).
+
+    The same formulas, in the same arithmetic, as :func:`tasks.kernel.creep.creep_threshold`
+    and :func:`motion_floor` take from the real modes of an undamped or proportionally
+    damped scene: ``c = min(sum_k (b . phi_k)^2 / max(lambda_k, r^2), b^T K^-1 b)``, and
+    ``sum_k phi_k a_k / max(Omega_k^2, 1)`` (``a_k = phi_k . p / r^2``, ``Omega_k^2 =
+    lambda_k / r^2``), the static response ``K^-1 p`` where no mode lies below the
+    excitation. Both are scales of the structure at the excitation frequency, not of its
+    damping. Returns ``(c, floor)``.
+    """
+    n = b.shape[0]
+    r2 = r * r
+    c = 0.0
+    soft = False
+    resp = np.zeros(n)
+    for k in range(n):
+        om = math.sqrt(lam[k]) / r
+        bk = 0.0
+        pk = 0.0
+        for i in range(n):
+            bk += b[i] * phi[i, k]
+            pk += phi[i, k] * p[i]
+        c += bk * bk / max(om * om * r2, r2)
+        soft = soft or om < 1.0
+        a = pk / r2 / max(om**2, 1.0)
+        for i in range(n):
+            resp[i] += phi[i, k] * a
+    static = abs(_dot(b, _solve(K, b)))
+    if not soft:
+        resp = _solve(K, p)
+    return min(c, static), _max_abs(resp)
 
 
 @njit(cache=True)
@@ -94,6 +135,8 @@ def _context(r, beta, scene, settings):
         g_c_s,
         _,
         load_slip,
+        lam_u,
+        phi_u,
     ) = scene
     event_tol = settings[0]
     step_fraction = settings[1]
@@ -148,6 +191,8 @@ def _context(r, beta, scene, settings):
     for k in range(n):
         damped = damped or damp_slip[k] != 0.0
     sc[DAMPED] = 1.0 if damped else 0.0
+    if general:  # the pairs have no real modes: the undamped ones give both scales
+        sc[COMPLIANCE], sc[FLOOR] = _undamped_scales(K, b, p, lam_u, phi_u, r)
     if general:  # (constant load / r^2, offset of eta' / r) per unit force or d0
         f_r2 = np.concatenate((f_slip[:n] / r2, f_slip[n : 2 * n] / r))
         dstat_r2 = np.concatenate((d_static[:m] / r2, d_static[m:] / r))
@@ -225,8 +270,13 @@ def motion_floor(ctx, X_held):
     excitation frequency, not its static ``a_k / Omega_k^2``: the static
     response would be a scale many orders of magnitude above the motion, and a
     tolerance relative to it would accept a transient of that mode still
-    creeping as a steady state (docs/simulator.md 5). Non-proportional damping
-    (modal pairs, docs/structures.md 4.5) keeps the static response.
+    creeping as a steady state (docs/simulator.md 5). A scene whose damping is not
+    proportional (damped pairs, docs/structures.md 4.5, no real modes) takes the same
+    response in the undamped modes of ``(K, Gamma)``, computed once per point
+    (:func:`_undamped_scales`, entry ``FLOOR`` of the context's scalars): it kept the
+    static response, and every preset accepted such a transient of a chain with a
+    dashpot (its period still moving by 0.43 / 0.11 / 8.8e-3 of the motion at
+    ``fast`` / ``balanced`` / ``exact``).
 
     Parameters
     ----------
@@ -243,10 +293,11 @@ def motion_floor(ctx, X_held):
     seg = ctx[CTX_SEG_SLIP]
     phi = ctx[CTX_PHI]
     n = seg.shape[1]
+    if phi.shape[0] != n:  # damped pairs: from the undamped modes (_undamped_scales)
+        return max(_max_abs(X_held), ctx[CTX_SC][FLOOR], 1e-300)
     soft = False
-    if phi.shape[0] == n:  # real modes (undamped or proportionally damped)
-        for k in range(n):
-            soft = soft or seg[OMEGA, k] < 1.0
+    for k in range(n):  # real modes (undamped or proportionally damped)
+        soft = soft or seg[OMEGA, k] < 1.0
     if soft:
         resp = np.zeros(n)
         for k in range(n):

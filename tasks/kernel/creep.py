@@ -15,6 +15,7 @@ from numba import njit
 
 from tasks.kernel.events import stick_force_bound
 from tasks.kernel.layout import (
+    COMPLIANCE,
     CTX_B,
     CTX_BETA,
     CTX_K,
@@ -62,15 +63,20 @@ def creep_threshold(ctx, beta, r):
     every mode is slower. (The static compliance alone overstates the threshold
     by ``r^2 / lambda`` above the natural frequencies and took genuine stick-slip
     well below the motion bound for no motion.) A structure whose damping is not
-    proportional (no real modes) keeps the static compliance.
+    proportional runs on damped pairs, which have no real modes: ``c`` is the same
+    sum over the undamped modes of ``(K, Gamma)``, computed once per point
+    (:func:`tasks.kernel.context._undamped_scales`, entry ``COMPLIANCE`` of the
+    context's scalars). It kept the static compliance, which overstated the threshold
+    by up to ``r^2 / lambda`` too: genuine stick-slip 1 % below the motion bound of a
+    chain with a dashpot (r = 232, above every mode) was labelled no motion.
     """
     b = ctx[CTX_B]
-    static = abs(_dot(b, _solve(ctx[CTX_K], b)))
     phi = ctx[CTX_PHI]
     n = b.shape[0]
-    r2 = r * r
     if phi.shape[0] != n:
-        return SLIP_RTOL * beta * static
+        return SLIP_RTOL * beta * ctx[CTX_SC][COMPLIANCE]
+    static = abs(_dot(b, _solve(ctx[CTX_K], b)))
+    r2 = r * r
     seg = ctx[CTX_SEG_SLIP]
     c = 0.0
     for k in range(n):

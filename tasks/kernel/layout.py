@@ -33,7 +33,15 @@ N_ROWS = 9
 # (NaN: none), so that the state at a located event is not computed twice.
 (TAU0, COS_TAU0, SIN_TAU0, OBS_COS, OBS0, KIND, SIGN, BETA, EVALS, WORK_CAP, DAMPED) = range(11)
 LAST_T, LAST_Y = 11, 12
-N_SCALARS = 13
+# COMPLIANCE, FLOOR: per-point constants of a scene whose damping is not proportional
+# (damped pairs, docs/structures.md 4.5; 0.0 otherwise), from the undamped modes of
+# (K, Gamma) (tasks.kernel.context._context): the contact's compliance at the
+# excitation frequency, sum_k (b . phi_k)^2 / max(lambda_k, r^2), of the creep
+# threshold (tasks.kernel.creep.creep_threshold), and the largest entry of the
+# motion floor's response (tasks.kernel.context.motion_floor). Real modes compute
+# both from the modes themselves.
+COMPLIANCE, FLOOR = 13, 14
+N_SCALARS = 15
 KIND_SLIP = 0.0
 KIND_STICK = 1.0
 
