@@ -211,15 +211,15 @@ class Refinement:
             if (a := getattr(self, name)) is not None and a.shape != self.shape:
                 raise ValueError(f"{name}: shape {a.shape} differs from the map's {self.shape}")
         self._hint_table: np.ndarray | None = None
-        self._mismatch: np.ndarray | None = None
+        self._mismatch_table: np.ndarray | None = None
 
     @property
     def mismatch_tables(self) -> np.ndarray | None:
         """The prediction's :func:`tasks.cells.mismatch_tables`, None without one; made at
         first use."""
-        if self.predicted is not None and self._mismatch is None:
-            self._mismatch = cells.mismatch_tables(self.predicted)
-        return self._mismatch
+        if self.predicted is not None and self._mismatch_table is None:
+            self._mismatch_table = cells.mismatch_tables(self.predicted)
+        return self._mismatch_table
 
     @property
     def hint_table(self) -> np.ndarray | None:
