@@ -604,7 +604,8 @@ def replay_main(args, n_r: int, n_beta: int) -> int:
             edge = next_to_change(dense)
             bound = cycles[edge].sum() / cycles.sum()
             print(
-                f"| {sc['name']}{label} | {n:,} | {100 * sim.mean():.2f} | {100 * share:.2f} "
+                f"| {sc['name']}{label} | {n:,} | {100 * sim.mean():.2f} ({int(sim.sum()):,}) "
+                f"| {100 * share:.2f} "
                 f"| {1 / share:.1f} | {percent(n - int(differ.sum()), n, 4)} "
                 f"({int(differ.sum())} differ) | {int((differ & (dense['regime'] >= 0)).sum())} "
                 f"| {v.agree} / {v.sampled} | {cpu:.3f} | {int(edge.sum()):,}, "
