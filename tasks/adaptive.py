@@ -452,15 +452,19 @@ class Refinement:
         return trust >= 0 and bool(self._mismatch(box, trust).any())
 
     def _guided_middles(self, box: tuple[int, int, int, int]) -> list[tuple[int, int]]:
-        """The middles of a strip with trusted corners that the prediction gives another
-        label and that are not simulated yet."""
-        trust = self._trusted(box)
-        if trust < 0:
+        """The middles of a strip's long edges not simulated yet that the prediction gives
+        another label than the one the edge's ends share and it gives them too (an
+        inferred middle takes its edge's label, :meth:`_resolved_strip`)."""
+        if self.predicted is None:
             return []
-        p = self.predicted
-        return [
-            m for _, m, _ in self._strip_points(box) if 0 <= p[m] != trust and not self.simulated[m]
-        ]
+        lab, p, sim = self.fields[self.label], self.predicted, self.simulated
+        out = []
+        for a, m, b in self._strip_points(box):
+            la = int(lab[a])
+            trusted = lab[b] == la == p[a] == p[b] and 0 <= la < cells.PREDICTED_LABELS
+            if trusted and 0 <= p[m] != la and not sim[m]:
+                out.append(m)
+        return out
 
     def _guided_open(self, box: tuple[int, int, int, int]) -> bool:
         """The prediction keeps a settled cell open: a cell :meth:`_guided` (split down to

@@ -120,15 +120,21 @@ def strip_middles(
 
 
 def guided_middles(
-    m: np.ndarray, trust: np.ndarray, predicted: np.ndarray, sim: np.ndarray
+    a: np.ndarray,
+    m: np.ndarray,
+    b: np.ndarray,
+    label: np.ndarray,
+    predicted: np.ndarray,
+    sim: np.ndarray,
 ) -> np.ndarray:
-    """The middles ``m`` (``(k, 2)``, of :func:`strip_edges`) of strips whose corners
-    the prediction gives their label ``trust`` (:func:`trusted`) that it gives another
-    and that are not simulated yet: what a uniform strip asks for
+    """Which middles (``(k, 2)`` mask over the long edges of strips, :func:`strip_edges`)
+    a settled strip asks for: those not simulated yet that the prediction gives another
+    label than the one the edge's two ends share and it gives them too
     (:meth:`~tasks.adaptive.Refinement._guided_middles`)."""
-    p = predicted[m]
-    t = trust[:, None]
-    return (t >= 0) & (p >= 0) & (p != t) & ~sim[m]
+    la, pm = label[a], predicted[m]
+    trust = (la == label[b]) & (predicted[a] == la) & (predicted[b] == la)
+    trust &= (la >= 0) & (la < PREDICTED_LABELS)
+    return trust & (pm >= 0) & (pm != la) & ~sim[m]
 
 
 def halves(

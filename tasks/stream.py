@@ -187,7 +187,7 @@ class StreamRefinement(Refinement):
             trust = guided = None
             if self.predicted is not None:  # the prediction keeps guided cells open
                 trust, guided = self._guided_many(boxes)
-                ask = self._guided_middles_many(boxes[is_strip], trust[is_strip], sim)
+                ask = self._guided_middles_many(boxes[is_strip], sim)
                 open_ = guided.copy()
                 open_[is_strip] = ask.any(axis=1)
                 leaf = leaf & ~open_
@@ -195,8 +195,8 @@ class StreamRefinement(Refinement):
                 self._leaf_parts.append((boxes[leaf], depth[leaf]))
             strip = ~leaf & is_strip
             split = ~leaf & ~strip & ~((wide <= 1) & (tall <= 1))  # unit cells: all known
-            uniform = settled[strip] if trust is not None else None
-            again_b, again_d = self._ask_middles(boxes[strip], depth[strip], key, sim, uniform)
+            open_strip = settled[strip] if trust is not None else None  # kept open
+            again_b, again_d = self._ask_middles(boxes[strip], depth[strip], key, sim, open_strip)
             guide = None
             if trust is not None:  # guided cells halve towards the prediction
                 guide = (np.where(guided, trust, -1)[split], self.mismatch_tables)
@@ -222,8 +222,7 @@ class StreamRefinement(Refinement):
         a, m, b = cells.strip_edges(boxes, self.shape[1])
         ask = cells.strip_middles(a, m, b, key, sim)
         if settled is not None and settled.any():
-            trust = self._guided_many(boxes[settled])[0]
-            ask[settled] = self._guided_middles_many(boxes[settled], trust, sim)
+            ask[settled] = self._guided_middles_many(boxes[settled], sim)
         on = np.where(ask, m, np.where(ask[:, ::-1], m[:, ::-1], m))  # a lone middle twice
         return self._wait(boxes, depth, np.concatenate([on, on], axis=1), depth + 1)
 
@@ -244,13 +243,12 @@ class StreamRefinement(Refinement):
         trust = cells.trusted(boxes, label, self.predicted.reshape(-1), self.shape[1])
         return trust, cells.guided(boxes, trust, self.mismatch_tables)
 
-    def _guided_middles_many(
-        self, boxes: np.ndarray, trust: np.ndarray, sim: np.ndarray
-    ) -> np.ndarray:
-        """:meth:`Refinement._guided_middles` of the strips ``boxes`` (their labels ``trust``),
-        as a ``(k, 2)`` mask over their long edges."""
-        m = cells.strip_edges(boxes, self.shape[1])[1]
-        return cells.guided_middles(m, trust, self.predicted.reshape(-1), sim)
+    def _guided_middles_many(self, boxes: np.ndarray, sim: np.ndarray) -> np.ndarray:
+        """:meth:`Refinement._guided_middles` of the strips ``boxes``, as a ``(k, 2)`` mask
+        over their long edges."""
+        a, m, b = cells.strip_edges(boxes, self.shape[1])
+        label = self.fields[self.label].reshape(-1)
+        return cells.guided_middles(a, m, b, label, self.predicted.reshape(-1), sim)
 
     def _hinted_many(self, boxes: np.ndarray) -> np.ndarray:
         """:meth:`Refinement._hinted` of every cell of ``boxes`` (a hint set is fixed)."""

@@ -39,7 +39,7 @@ from test_adaptive_wall import _arrive, _tiles
 
 from analysis.adaptive import curve_hint
 from tasks import cells, regimes
-from tasks.adaptive import Refinement, refine
+from tasks.adaptive import Refinement, coarse_nodes, refine
 from tasks.stream import StreamRefinement
 
 
@@ -82,6 +82,40 @@ def test_a_peak_one_step_wide_at_its_tip_is_found_through_the_prediction(step):
         extra = 2 * lost + 20 if lost else 0.02 * plain.simulated_points
         assert guided.simulated_points <= plain.simulated_points + extra, (k, lost)
     assert missed  # the hint alone loses the tip (72 points) in some positions
+
+
+def _island(i, j):
+    """An island of 5 x 5 steps between coarse nodes (missed without a hint)."""
+    i0 = int(coarse_nodes(N_R, 16)[3]) + 5
+    inside = (i >= i0) & (i <= i0 + 4) & (j >= 37) & (j <= 41)
+    return np.where(inside, regimes.NO_MOTION, regimes.CONTINUOUS)
+
+
+def _dots(i, j):
+    """Single points of stick-slip on strip edges and in cells, beside a boundary."""
+    lab = np.where(j < 0.4 * i + 7, regimes.CONTINUOUS, regimes.NO_MOTION)
+    dots = ((i % 23 == 5) & (j % 19 == 3)) | ((i == 100) & (j == 47))
+    return np.where(dots, regimes.STICK_SLIP, lab)
+
+
+@pytest.mark.parametrize(
+    ("label", "step", "missed"),
+    [(map_with_features, 16, False), (_island, 8, False), (_island, 16, True),
+     (_dots, 8, True), (_dots, 16, True), ("peak", 8, True), ("peak", 16, True)],
+)  # fmt: skip
+def test_an_exact_prediction_gives_the_exact_map(label, step, missed):
+    """A prediction equal to the simulation at every point: every inferred point lies in
+    a cell whose corners it gets right, so it takes the predicted label (with or without
+    the hint; ``missed``: the map without either loses a feature)."""
+    hint = None
+    if label == "peak":
+        label, hint = _peak(111)
+    want = truth(label)
+    for h in (hint, None):
+        res = _quiet(step, synthetic(label), h, want)
+        np.testing.assert_array_equal(res.fields["regime"], want)
+    plain = _quiet(step, synthetic(label), None).fields["regime"]
+    assert (plain != want).any() == missed
 
 
 def _wrong(i, j):
@@ -190,7 +224,7 @@ def test_guided_cells_as_arrays_equal_the_per_cell_methods(seed):
         assert [tuple(int(v) for v in h) for h in halves[n]] == ref._children(box), box
     strip = cells.strips(boxes)
     sim = ref.simulated.reshape(-1)
-    ask = stream._guided_middles_many(boxes[strip], trust[strip], sim)
+    ask = stream._guided_middles_many(boxes[strip], sim)
     m = cells.strip_edges(boxes[strip], SHAPE[1])[1]
     for n, box in enumerate(b for b, s in zip(as_tuples, strip, strict=True) if s):
         want = sorted(i * SHAPE[1] + j for i, j in ref._guided_middles(box))
