@@ -34,9 +34,14 @@ Guarantees (in grid steps of the requested resolution):
   cells holding a hinted point inside, or on an edge longer than
   :data:`HINT_CELL` steps, are split down to :data:`HINT_CELL` steps even when
   uniform, and a cell is cut on the hinted grid line nearest its middle rather
-  than at its middle, :func:`tasks.cells.split_at`) but never decide a label.
-  The verification sample (:meth:`Refinement.verification`) estimates the
-  error of the inferred labels.
+  than at its middle, :func:`tasks.cells.split_at`) but never decide a label;
+  with their ``predicted`` labels, a uniform cell whose corners the prediction
+  gets right is kept open, halved towards a point it predicts otherwise down to
+  one step (:meth:`Refinement._guided_open`), so a feature the closed forms hold
+  is found whatever its width (an inferred point takes the predicted label
+  wherever the prediction is right at its cell's corners). The verification
+  sample (:meth:`Refinement.verification`) estimates the error of the inferred
+  labels.
 
 The logic is pure numerics: the classification of a batch of points is injected
 (:func:`refine`), or the caller drives the refinement itself, without barriers
@@ -144,6 +149,11 @@ class Refinement:
         none: e.g. the per-contact fields of several contacts).
     label : str
         The field the verification sample compares (any integer label).
+    predicted : int8 array of ``shape``, optional
+        The label the closed forms give every point (:func:`analysis.predict`;
+        negative: none). A cell whose four corners share a label it gives them too
+        is split, even when uniform, while it gives a point of the cell another
+        label (:meth:`_guided_open`); it never decides a label.
 
     Use: ``while (idx := ref.wave()).size: ref.accept(idx, simulate(idx))``,
     then optionally ``ref.verification()`` / ``ref.accept_verification``, then
