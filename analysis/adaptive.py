@@ -6,7 +6,12 @@ expected; an adaptive map splits every cell they cross down to a few grid steps
 at an antiresonance, a peak at a natural frequency) is not lost between coarse
 nodes, and cuts a cell on the hinted grid line nearest its middle
 (tasks.cells.split_at), so that a boundary where the closed forms put it is
-reached in one or two cuts instead of halvings. They never decide a label:
+reached in one or two cuts instead of halvings. Their prediction (the label
+:func:`analysis.predict` gives every grid point) keeps a uniform cell open while
+it gives a point of the cell another label than the one its corners share and
+the prediction gives them too: the cell is split towards that point down to one
+step, so a feature narrower than the cells (the tip of a peak of the motion
+bound at a held resonance) gets a simulated point. They never decide a label:
 every label of the map comes from a simulation (or is inferred from simulated
 corners that agree).
 """
@@ -64,14 +69,35 @@ def closed_form_hint(
     -------
     numpy.ndarray of bool, shape ``(r.size, beta.size)``
     """
+    return closed_form_guide(scene, r, beta, method)[0]
+
+
+def closed_form_guide(
+    scene: Scene, r: np.ndarray, beta: np.ndarray, method: str = "exact"
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`closed_form_hint` and the closed-form prediction of every grid point.
+
+    Returns
+    -------
+    hint : numpy.ndarray of bool, shape ``(r.size, beta.size)``
+    predicted : numpy.ndarray of int8, shape ``(r.size, beta.size)``
+        :func:`analysis.predict` of every point (the regime codes the closed forms
+        give), from the same curves.
+    """
     from analysis.closed_form import boundaries_along
+    from tasks.regimes import CONTINUOUS, NO_MOTION, STICK_SLIP
 
     # the same curves the result file stores (study.netcdf): computed once per plane
     cont, motion = boundaries_along(scene, np.asarray(r, dtype=float), method=method)
     n = np.asarray(r).size
     cont = np.broadcast_to(np.asarray(cont, dtype=float), (n,))
     motion = np.broadcast_to(np.asarray(motion, dtype=float), (n,))
-    return curve_hint(beta, cont) | curve_hint(beta, motion)
+    hint = curve_hint(beta, cont) | curve_hint(beta, motion)
+    b = np.asarray(beta, dtype=float)[None, :]
+    predicted = np.where(  # as analysis.predict
+        b >= motion[:, None], NO_MOTION, np.where(b < cont[:, None], CONTINUOUS, STICK_SLIP)
+    )
+    return hint, predicted.astype(np.int8)
 
 
 def adaptive_map(
@@ -90,9 +116,12 @@ def adaptive_map(
     """:func:`tasks.adaptive.adaptive_map` with the closed-form boundaries as refinement hints.
 
     ``hint`` is the :func:`analysis.boundaries` method whose curves are refined
-    down to tasks.adaptive.HINT_CELL grid steps ("exact" or "paper"), or None for no hint.
+    down to tasks.adaptive.HINT_CELL grid steps ("exact" or "paper"), and whose
+    prediction keeps cells open (:func:`closed_form_guide`), or None for no hint.
     """
-    mask = None if hint is None else closed_form_hint(scene, r, beta, hint)
+    mask = predicted = None
+    if hint is not None:
+        mask, predicted = closed_form_guide(scene, r, beta, hint)
     return _adaptive_map(
         scene,
         r,
@@ -104,5 +133,6 @@ def adaptive_map(
         seed=seed,
         classify_fn=classify_fn,
         fidelity=fidelity,
+        predicted=predicted,
         **settings,
     )

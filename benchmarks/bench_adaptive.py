@@ -567,7 +567,7 @@ def dense_fields(sc: dict, n_r: int, n_beta: int, cache: Path, fidelity: str):
 
 def replay_main(args, n_r: int, n_beta: int) -> int:
     """The refinement of each ``--cluster`` scene replayed on its dense grid's fields."""
-    from analysis.adaptive import closed_form_hint
+    from analysis.adaptive import closed_form_guide
     from tasks.stream import StreamRefinement
 
     print(
@@ -585,13 +585,17 @@ def replay_main(args, n_r: int, n_beta: int) -> int:
     composition = {}
     for sc in cluster_scenes(args.scenes):
         scene, r, beta, dense = dense_fields(sc, n_r, n_beta, args.cache, args.fidelity)
-        hint = None if args.hint == "none" else closed_form_hint(scene, r, beta, args.hint)
-        runs = {"": StreamRefinement}
-        if args.code is not None:
-            runs = {", before": _stream_class(args.code)} | runs
+        hint = predicted = None
+        if args.hint != "none":
+            hint, predicted = closed_form_guide(scene, r, beta, args.hint)
+        if args.no_predicted:
+            predicted = None
+        runs = {"": (StreamRefinement, predicted)}
+        if args.code is not None:  # another checkout's refinement: its own hint only
+            runs = {", before": (_stream_class(args.code), None)} | runs
         maps = {}
-        for label, cls in runs.items():
-            out, v, cpu = _replay(cls, (n_r, n_beta), args.coarse_step, hint, dense)
+        for label, (cls, pred) in runs.items():
+            out, v, cpu = _replay(cls, (n_r, n_beta), args.coarse_step, hint, dense, pred)
             maps[label] = out
             sim = out["simulated"]
             cycles = dense["cycles"].astype(float)
@@ -601,7 +605,8 @@ def replay_main(args, n_r: int, n_beta: int) -> int:
             edge = next_to_change(dense)
             bound = cycles[edge].sum() / cycles.sum()
             print(
-                f"| {sc['name']}{label} | {n:,} | {100 * sim.mean():.2f} | {100 * share:.2f} "
+                f"| {sc['name']}{label} | {n:,} | {100 * sim.mean():.2f} ({int(sim.sum()):,}) "
+                f"| {100 * share:.2f} "
                 f"| {1 / share:.1f} | {percent(n - int(differ.sum()), n, 4)} "
                 f"({int(differ.sum())} differ) | {int((differ & (dense['regime'] >= 0)).sum())} "
                 f"| {v.agree} / {v.sampled} | {cpu:.3f} | {int(edge.sum()):,}, "
@@ -678,15 +683,16 @@ def next_to_change(dense: dict[str, np.ndarray]) -> np.ndarray:
     return edge
 
 
-def _replay(cls, shape, coarse_step, hint, dense):
+def _replay(cls, shape, coarse_step, hint, dense, predicted=None):
     """One refinement (class ``cls``) on the dense fields, point lists of 64: its result,
-    verification summary and CPU seconds (the hint excluded)."""
+    verification summary and CPU seconds (the hint and the prediction excluded)."""
     from study.adaptive import VERIFY_SEED
     from tasks.adaptive import DEFAULT_VERIFY_MIN
 
     t = time.process_time()
     layout = {k: (str(v.dtype), 0) for k, v in dense.items()}
-    ref = cls(shape, coarse_step, hint, fields=layout)
+    extra = {} if predicted is None else {"predicted": predicted}
+    ref = cls(shape, coarse_step, hint, fields=layout, **extra)
     while (idx := ref.take(64)).size:
         ij = np.unravel_index(idx, ref.shape)
         ref.accept(idx, {k: v[ij] for k, v in dense.items()})
@@ -931,6 +937,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--cache", type=Path, default=Path(".bench_adaptive_cache"))
     ap.add_argument("--cluster", action="store_true", help="adaptive vs dense studies on Dask")
     ap.add_argument("--replay", action="store_true", help="refinement on cached dense fields")
+    ap.add_argument(
+        "--no-predicted",
+        action="store_true",
+        help="--replay: the hint without its prediction (tasks.adaptive.Refinement)",
+    )
     ap.add_argument("--workers", type=int, default=2, help="--cluster: worker processes")
     ap.add_argument(
         "--scenes", nargs="*", help="--cluster, --replay: fig04:gamma1_kappa1, dof3_mass_m2_m3"

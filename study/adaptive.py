@@ -248,6 +248,7 @@ class AdaptivePlan(ScenePlan):
             "hint": spec.hint,
             "seed": VERIFY_SEED,
             "sample": "priority",  # tasks.adaptive.verification_sample
+            "guide": "predicted",  # the prediction keeps cells open (tasks.adaptive)
         }
         h = hashlib.sha256(json.dumps(ident, sort_keys=True).encode())
         h.update(np.ascontiguousarray(axes["r"]).tobytes())
@@ -633,7 +634,7 @@ class AdaptivePlan(ScenePlan):
         lattice does not depend on the hint, so the client computes the hint while the
         first point lists compute."""
         if pl.hint_due:
-            pl.ref.set_hint(self._hint(pl.sweep, self._axes))
+            pl.ref.set_hint(*self._hint(pl.sweep, self._axes))
             pl.hint_due = False
         return pl.ref
 
@@ -698,23 +699,26 @@ class AdaptivePlan(ScenePlan):
         if not n_tiles:
             return
         pl.first_row = np.full(pl.ref.n_points, np.iinfo(np.int64).max, dtype=np.int64)
-        hint = self._refinement(pl).hint
+        ref = self._refinement(pl)
+        hint, predicted = ref.hint, ref.predicted
         spec = self.spec
         threshold = sample_threshold(spec.verify_fraction, DEFAULT_VERIFY_MIN, pl.ref.n_points)
         verify = (threshold, VERIFY_SEED) if self.sample_in_tiles else None
         for i0, i1 in longest_first(rows, hint, self._axes["r"], spec.coarse_step):
-            task = tile_task(pl.ident["physics"], self.settings, self._axes, (i0, i1), hint, verify)
+            physics = pl.ident["physics"]
+            task = tile_task(physics, self.settings, self._axes, (i0, i1), hint, verify, predicted)
             task["coarse_step"] = self.spec.coarse_step
             tile = Tile(self.spec.name, tile_key(pl.tag, (i0, i1)), (i0, i1), task, pl.sweep)
             pl.tiles.append(tile)
             pl.pending[tile.key] = (i0, i1)
 
-    def _hint(self, sweep: tuple[int, ...], axes: dict) -> np.ndarray:
-        from analysis.adaptive import closed_form_hint
+    def _hint(self, sweep: tuple[int, ...], axes: dict) -> tuple[np.ndarray, np.ndarray]:
+        """The closed-form hint and prediction (analysis.adaptive.closed_form_guide)."""
+        from analysis.adaptive import closed_form_guide
 
         ratios = {k: float(axes[k][i]) for k, i in zip(self.spec.sweeps, sweep, strict=True)}
         scene = self.spec.scene_at(**ratios)
-        return closed_form_hint(scene, axes["r"], axes["beta"], self.spec.hint)
+        return closed_form_guide(scene, axes["r"], axes["beta"], self.spec.hint)
 
     def _finish(self, pl: _Plane, summary: VerificationSummary, work) -> None:
         """Save the finished plane (its fields and counts) and say so in one line."""

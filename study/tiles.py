@@ -119,9 +119,11 @@ def tile_task(
     rows: tuple[int, int],
     hint: np.ndarray | None,
     verify: tuple[float, int] | None = None,
+    predicted: np.ndarray | None = None,
 ) -> dict:
     """The task of the tile ``rows`` (:func:`tile_chunk`, without its ``coarse_step``);
-    ``verify``: ``(threshold, seed)`` of its share of the verification sample."""
+    ``verify``: ``(threshold, seed)`` of its share of the verification sample; ``hint``
+    and ``predicted`` the plane's (:func:`analysis.adaptive.closed_form_guide`)."""
     i0, i1 = rows
     return {
         "verify": verify,
@@ -131,6 +133,7 @@ def tile_task(
         "r": axes["r"][i0 : i1 + 1],
         "beta": axes["beta"],
         "hint": None if hint is None else hint[i0 : i1 + 1],
+        "predicted": None if predicted is None else predicted[i0 : i1 + 1],
         "offset": i0 * axes["beta"].size,
     }
 
@@ -212,7 +215,7 @@ def tile_chunk(task: dict) -> dict[str, np.ndarray]:
 
     r, beta = task["r"], task["beta"]
     idx, arrays, final, cells = refine_tile_cells(
-        simulate, r, beta, task["coarse_step"], task["hint"]
+        simulate, r, beta, task["coarse_step"], task["hint"], task.get("predicted")
     )
     level = cells["level"]
     if task.get("verify") is not None:  # then its share of the verification sample

@@ -34,9 +34,14 @@ Guarantees (in grid steps of the requested resolution):
   cells holding a hinted point inside, or on an edge longer than
   :data:`HINT_CELL` steps, are split down to :data:`HINT_CELL` steps even when
   uniform, and a cell is cut on the hinted grid line nearest its middle rather
-  than at its middle, :func:`tasks.cells.split_at`) but never decide a label.
-  The verification sample (:meth:`Refinement.verification`) estimates the
-  error of the inferred labels.
+  than at its middle, :func:`tasks.cells.split_at`) but never decide a label;
+  with their ``predicted`` labels, a uniform cell whose corners the prediction
+  gets right is kept open, halved towards a point it predicts otherwise down to
+  one step (:meth:`Refinement._guided_open`), so a feature the closed forms hold
+  is found whatever its width (an inferred point takes the predicted label
+  wherever the prediction is right at its cell's corners). The verification
+  sample (:meth:`Refinement.verification`) estimates the error of the inferred
+  labels.
 
 The logic is pure numerics: the classification of a batch of points is injected
 (:func:`refine`), or the caller drives the refinement itself, without barriers
@@ -58,6 +63,12 @@ import numpy as np
 
 from tasks import cells, regimes
 from tasks.result import FIELDS, MASS_FIELDS
+from tasks.verification import (  # the verification sample, named here too
+    VerificationSummary,
+    disagreement_upper_bound,
+    sample_priority,
+    verification_sample,
+)
 
 #: Default coarsest spacing, in grid steps: the smallest feature the map is sure to find.
 DEFAULT_COARSE_STEP = 16
@@ -116,71 +127,6 @@ def coarse_nodes(n: int, step: int) -> np.ndarray:
     return np.unique(np.append(np.arange(0, n, step), n - 1))
 
 
-def sample_priority(idx: np.ndarray, seed: int = 0) -> np.ndarray:
-    """A seeded uniform number in [0, 1) for each flat index ``idx`` of a plane (a
-    splitmix64 hash of index and seed): the verification sample takes the inferred
-    points of least priority (:func:`verification_sample`). A point's priority does
-    not depend on the other points, so a part of the plane (a tile, :mod:`tasks.tiles`)
-    knows which of its inferred points the sample may take before the plane is done."""
-    with np.errstate(over="ignore"):
-        z = (np.asarray(idx, dtype=np.uint64) + np.uint64(1)) * np.uint64(0x9E3779B97F4A7C15)
-        z = z ^ (np.uint64(seed) * np.uint64(0xD1B54A32D192ED03))
-        z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
-        z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
-        z = z ^ (z >> np.uint64(31))
-    return (z >> np.uint64(11)).astype(np.float64) * 2.0**-53
-
-
-def verification_sample(
-    inferred: np.ndarray, fraction: float, minimum: int, seed: int = 0
-) -> np.ndarray:
-    """The verification sample of the inferred points ``inferred`` (flat indices): those
-    whose :func:`sample_priority` is below ``fraction`` (each with that probability,
-    independently), and at least ``minimum`` (those of least priority; all if fewer),
-    sorted."""
-    inferred = np.asarray(inferred, dtype=np.int64)
-    u = sample_priority(inferred, seed)
-    below = u < fraction
-    n = min(inferred.size, int(minimum))
-    if below.sum() >= n:
-        return np.sort(inferred[below])
-    return np.sort(inferred[np.argsort(u, kind="stable")[:n]])
-
-
-@dataclass
-class VerificationSummary:
-    """Agreement of inferred labels with simulation on a seeded random sample."""
-
-    inferred: int  #: points inferred (before the sample was simulated)
-    sampled: int  #: inferred points simulated for the check
-    agree: int  #: of which the inferred regime equals the simulated one
-    upper_95: float  #: one-sided 95 % upper bound on the disagreement rate (Clopper-Pearson)
-
-    @property
-    def agreement(self) -> float:
-        return self.agree / self.sampled if self.sampled else float("nan")
-
-    def line(self) -> str:
-        if not self.sampled:
-            return "verification: no inferred points"
-        return (
-            f"verification: {self.sampled:,} of {self.inferred:,} inferred points simulated, "
-            f"{self.agree:,} agree ({100 * self.agreement:.2f} %; disagreement below "
-            f"{100 * self.upper_95:.2f} % at 95 % confidence)"
-        )
-
-
-def disagreement_upper_bound(sampled: int, wrong: int, confidence: float = 0.95) -> float:
-    """One-sided Clopper-Pearson upper bound on a rate with ``wrong`` of ``sampled``."""
-    if sampled == 0:
-        return 1.0
-    if wrong >= sampled:
-        return 1.0
-    from scipy.special import betaincinv
-
-    return float(betaincinv(wrong + 1, sampled - wrong, confidence))
-
-
 class Refinement:
     """The state of one adaptive map of shape ``(n_r, n_beta)``, level by level.
 
@@ -203,6 +149,11 @@ class Refinement:
         none: e.g. the per-contact fields of several contacts).
     label : str
         The field the verification sample compares (any integer label).
+    predicted : int8 array of ``shape``, optional
+        The label the closed forms give every point (:func:`analysis.predict`;
+        negative: none). A cell whose four corners share a label it gives them too
+        is split, even when uniform, while it gives a point of the cell another
+        label (:meth:`_guided_open`); it never decides a label.
 
     Use: ``while (idx := ref.wave()).size: ref.accept(idx, simulate(idx))``,
     then optionally ``ref.verification()`` / ``ref.accept_verification``, then
@@ -218,6 +169,7 @@ class Refinement:
         dof: int = 1,
         fields: Mapping[str, tuple[str, int]] | None = None,
         label: str = "regime",
+        predicted: np.ndarray | None = None,
     ) -> None:
         n_r, n_b = (int(n) for n in shape)
         if n_r < 1 or n_b < 1:
@@ -235,7 +187,7 @@ class Refinement:
             for k, (dt, n) in fields.items()
         }
         self.simulated = np.zeros(self.shape, dtype=bool)
-        self.set_hint(hint)
+        self.set_hint(hint, predicted)
         self.key = np.zeros(self.shape, dtype=np.int64)
         self.verification_flag = np.zeros(self.shape, dtype=np.int8)
         self.levels: list[int] = []  # points simulated per wave
@@ -257,15 +209,27 @@ class Refinement:
         self._below: dict[tuple[float, int], np.ndarray] = {}  # presample
         self._filled = False
 
-    def set_hint(self, hint: np.ndarray | None) -> None:
-        """Set the hint (see the class notes). The first points (the coarse lattice) do
-        not depend on it, so it may come after them, but before any result arrives."""
+    def set_hint(self, hint: np.ndarray | None, predicted: np.ndarray | None = None) -> None:
+        """Set the hint and the prediction (see the class notes). The first points (the
+        coarse lattice) do not depend on them, so they may come after them, but before
+        any result arrives."""
         if self.simulated.any():
             raise ValueError("hint: must be set before the first results arrive")
         self.hint = None if hint is None else np.asarray(hint, dtype=bool)
-        if self.hint is not None and self.hint.shape != self.shape:
-            raise ValueError(f"hint: shape {self.hint.shape} differs from the map's {self.shape}")
+        self.predicted = None if predicted is None else np.asarray(predicted, dtype=np.int8)
+        for name in ("hint", "predicted"):
+            if (a := getattr(self, name)) is not None and a.shape != self.shape:
+                raise ValueError(f"{name}: shape {a.shape} differs from the map's {self.shape}")
         self._hint_table: np.ndarray | None = None
+        self._mismatch_table: np.ndarray | None = None
+
+    @property
+    def mismatch_tables(self) -> np.ndarray | None:
+        """The prediction's :func:`tasks.cells.mismatch_tables`, None without one; made at
+        first use."""
+        if self.predicted is not None and self._mismatch_table is None:
+            self._mismatch_table = cells.mismatch_tables(self.predicted)
+        return self._mismatch_table
 
     @property
     def hint_table(self) -> np.ndarray | None:
@@ -292,7 +256,7 @@ class Refinement:
             new: list[tuple[int, int]] = []
             children: list[tuple[int, int, int, int]] = []
             for box in self._active:
-                if self._settled(box) and not self._hinted(box):
+                if self._settled(box) and not self._hinted(box) and not self._guided_open(box):
                     self._leaves_new.append(box)
                     continue
                 i0, i1, j0, j1 = box
@@ -322,7 +286,10 @@ class Refinement:
         hint, at the hinted grid line nearest the middle (:func:`tasks.cells.split_at`)."""
         i0, i1, j0, j1 = box
         split_r, split_b = self._split_axes(box)
-        at = int(cells.split_at(np.array([box]), np.array([split_r]), self.hint_table)[0])
+        table, layer = self.hint_table, None
+        if (trust := self._trusted(box)) >= 0 and self._guided(box):  # towards the prediction
+            table, layer = self.mismatch_tables, np.array([trust])
+        at = int(cells.split_at(np.array([box]), np.array([split_r]), table, layer)[0])
         im = at if split_r else None
         jm = at if split_b else None
         rs = [(i0, im), (im, i1)] if im is not None else [(i0, i1)]
@@ -344,6 +311,10 @@ class Refinement:
         not depend on the order in which points arrive.
         """
         i0, i1, j0, j1 = box
+        if self._guided(box):  # across a line holding a point predicted otherwise
+            trust = np.array([self._trusted(box)])
+            r = bool(cells.guided_axes(np.array([box]), trust, self.mismatch_tables)[0])
+            return r, not r
         k = self.key
         along_r = k[i0, j0] != k[i1, j0] or k[i0, j1] != k[i1, j1]
         along_b = k[i0, j0] != k[i0, j1] or k[i1, j0] != k[i1, j1]
@@ -400,6 +371,8 @@ class Refinement:
         its uniform edges whose neighbour across the strip disagrees with them."""
         k, sim = self.key, self.simulated
         edges = self._strip_points(box)
+        if self.predicted is not None and self._settled(box):  # kept open (_guided_open)
+            return self._guided_middles(box)
         ask = [m for a, m, b in edges if k[a] != k[b] and not sim[m]]
         if ask:
             return ask
@@ -461,6 +434,55 @@ class Refinement:
         along_r = i1 - i0 > HINT_CELL and h[i0 + 1 : i1, [j0, j1]].any()
         along_b = j1 - j0 > HINT_CELL and h[[i0, i1], j0 + 1 : j1].any()
         return bool(inside or along_r or along_b)
+
+    def _trusted(self, box: tuple[int, int, int, int]) -> int:
+        """The label the cell's four corners share and the prediction gives them too (a
+        label of the prediction, :data:`tasks.cells.PREDICTED_LABELS`), else -1."""
+        if self.predicted is None:
+            return -1
+        i0, i1, j0, j1 = box
+        lab = self.fields[self.label]
+        first = int(lab[i0, j0])
+        for p in ((i0, j0), (i0, j1), (i1, j0), (i1, j1)):
+            if lab[p] != first or self.predicted[p] != first:
+                return -1
+        return first if 0 <= first < cells.PREDICTED_LABELS else -1
+
+    def _mismatch(self, box: tuple[int, int, int, int], label: int) -> np.ndarray:
+        """Which points of the cell the prediction gives another label than ``label``."""
+        i0, i1, j0, j1 = box
+        p = self.predicted[i0 : i1 + 1, j0 : j1 + 1]
+        return (p >= 0) & (p != label)
+
+    def _guided(self, box: tuple[int, int, int, int]) -> bool:
+        """Its corners trusted (:meth:`_trusted`), the cell holds a point (no corner) the
+        prediction gives another label: it is halved towards it (:meth:`_split_axes`,
+        :meth:`_children`). Depends on the cell, its corners and the prediction only."""
+        trust = self._trusted(box)
+        return trust >= 0 and bool(self._mismatch(box, trust).any())
+
+    def _guided_middles(self, box: tuple[int, int, int, int]) -> list[tuple[int, int]]:
+        """The middles of a strip's long edges not simulated yet that the prediction gives
+        another label than the one the edge's ends share and it gives them too (an
+        inferred middle takes its edge's label, :meth:`_resolved_strip`)."""
+        if self.predicted is None:
+            return []
+        lab, p, sim = self.fields[self.label], self.predicted, self.simulated
+        out = []
+        for a, m, b in self._strip_points(box):
+            la = int(lab[a])
+            trusted = lab[b] == la == p[a] == p[b] and 0 <= la < cells.PREDICTED_LABELS
+            if trusted and 0 <= p[m] != la and not sim[m]:
+                out.append(m)
+        return out
+
+    def _guided_open(self, box: tuple[int, int, int, int]) -> bool:
+        """The prediction keeps a settled cell open: a cell :meth:`_guided` (split down to
+        one step), or a strip with a middle :meth:`_guided_middles` asks for. Hints never
+        decide a label: this only asks for simulations."""
+        if self._strip_points(box):
+            return bool(self._guided_middles(box))
+        return self._guided(box)
 
     def _reopen_leaves(self) -> None:
         """Leaves (uniform cells) that received new simulated points disagreeing with them are
@@ -620,6 +642,7 @@ def refine(
     dof: int = 1,
     barriers: bool = False,
     batch_points: int = DEFAULT_BATCH_POINTS,
+    predicted: np.ndarray | None = None,
 ) -> AdaptiveResult:
     """Run a whole refinement with an injected batch classifier.
 
@@ -629,16 +652,16 @@ def refine(
     ``verify_min = 0`` skip the verification sample. ``barriers = True`` runs
     the wave refinement (:meth:`Refinement.wave`, one batch per level), else
     :class:`tasks.stream.StreamRefinement` in batches of at most ``batch_points``; the
-    labels are the same.
+    labels are the same. ``predicted``: see :class:`Refinement`.
     """
     if barriers:
-        ref = Refinement(shape, coarse_step, hint, key_fields, dof)
+        ref = Refinement(shape, coarse_step, hint, key_fields, dof, predicted=predicted)
         while (idx := ref.wave()).size:
             ref.accept(idx, classify_batch(*np.unravel_index(idx, ref.shape)))
     else:
         from tasks.stream import StreamRefinement
 
-        ref = StreamRefinement(shape, coarse_step, hint, key_fields, dof)
+        ref = StreamRefinement(shape, coarse_step, hint, key_fields, dof, predicted=predicted)
         while (idx := ref.take(batch_points)).size:
             ref.accept(idx, classify_batch(*np.unravel_index(idx, ref.shape)))
     summary = None
@@ -664,6 +687,7 @@ def adaptive_map(
     classify_fn: Callable | None = None,
     fidelity: str = "balanced",
     barriers: bool = False,
+    predicted: np.ndarray | None = None,
     **settings: object,
 ) -> AdaptiveResult:
     """The regime map of ``scene`` on the grid ``r`` x ``beta``, simulated adaptively.
@@ -686,6 +710,8 @@ def adaptive_map(
     barriers : bool
         Refine wave by wave (the old path, kept for comparison) instead of
         point list by point list (:class:`tasks.stream.StreamRefinement`); same labels.
+    predicted : int8 array, optional
+        The closed forms' label of every point (see :class:`Refinement`).
     """
     if classify_fn is None:
         from tasks.classifier import classify as classify_fn
@@ -714,6 +740,7 @@ def adaptive_map(
         seed,
         dof=scene.dof,
         barriers=barriers,
+        predicted=predicted,
     )
     for k in skipped:  # absent, never NaN-filled
         del result.fields[k]

@@ -119,21 +119,52 @@ def strip_middles(
     return np.where(first.any(axis=1)[:, None], first, second)
 
 
+def guided_middles(
+    a: np.ndarray,
+    m: np.ndarray,
+    b: np.ndarray,
+    label: np.ndarray,
+    predicted: np.ndarray,
+    sim: np.ndarray,
+) -> np.ndarray:
+    """Which middles (``(k, 2)`` mask over the long edges of strips, :func:`strip_edges`)
+    a settled strip asks for: those not simulated yet that the prediction gives another
+    label than the one the edge's two ends share and it gives them too
+    (:meth:`~tasks.adaptive.Refinement._guided_middles`)."""
+    la, pm = label[a], predicted[m]
+    trust = (la == label[b]) & (predicted[a] == la) & (predicted[b] == la)
+    trust &= (la >= 0) & (la < PREDICTED_LABELS)
+    return trust & (pm >= 0) & (pm != la) & ~sim[m]
+
+
 def halves(
-    boxes: np.ndarray, key2d: np.ndarray, hint_table: np.ndarray | None = None
+    boxes: np.ndarray,
+    key2d: np.ndarray,
+    hint_table: np.ndarray | None = None,
+    guide: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> np.ndarray:
     """The two halves of each cell (``(2k, 4)``: both halves of cell 0, then of cell 1,
     ...), split along one axis as :meth:`~tasks.adaptive.Refinement._split_axes` and
     :meth:`~tasks.adaptive.Refinement._children` do, at :func:`split_at` (the
     middle, or the hinted line nearest it when ``hint_table``, the hint's
-    :func:`summed_table`, is given). Cells must not be unit cells."""
+    :func:`summed_table`, is given). ``guide``: ``(trust, tables)``, the label of each
+    guided cell (:func:`guided`; -1 for the others) and the :func:`mismatch_tables`:
+    a guided cell is halved along :func:`guided_axes`, on the line nearest its middle
+    that holds a point the prediction gives another label. Cells must not be unit
+    cells."""
     i0, i1, j0, j1 = boxes.T
     along_r = (key2d[i0, j0] != key2d[i1, j0]) | (key2d[i0, j1] != key2d[i1, j1])
     along_b = (key2d[i0, j0] != key2d[i0, j1]) | (key2d[i1, j0] != key2d[i1, j1])
     wide, tall = i1 - i0, j1 - j0
     along_r = np.where(along_r == along_b, wide >= tall, along_r)
     split_r = (wide > 1) & (along_r | (tall <= 1))
+    g = np.zeros(boxes.shape[0], dtype=bool) if guide is None else guide[0] >= 0
+    if g.any():
+        trust, tables = guide[0][g], guide[1]
+        split_r[g] = guided_axes(boxes[g], trust, tables)
     at = split_at(boxes, split_r, hint_table)
+    if g.any():
+        at[g] = split_at(boxes[g], split_r[g], tables, trust)
     im, jm = np.where(split_r, at, i0), np.where(split_r, j0, at)
     first = np.stack([i0, np.where(split_r, im, i1), j0, np.where(split_r, j1, jm)], axis=1)
     second = np.stack([np.where(split_r, im, i0), i1, np.where(split_r, j0, jm), j1], axis=1)
@@ -141,7 +172,10 @@ def halves(
 
 
 def split_at(
-    boxes: np.ndarray, split_r: np.ndarray, hint_table: np.ndarray | None = None
+    boxes: np.ndarray,
+    split_r: np.ndarray,
+    hint_table: np.ndarray | None = None,
+    layer: np.ndarray | None = None,
 ) -> np.ndarray:
     """Where each cell is cut across the axis it is split along (r where ``split_r``,
     else beta): its middle, or, when a hint is given (its :func:`summed_table`), the
@@ -154,7 +188,9 @@ def split_at(
     the part beside it, uniform, holds the hinted points on its edge only,
     where they split it (:func:`hinted`) only while that edge is longer than
     :data:`tasks.adaptive.HINT_CELL`. Labels still come from simulated points
-    only: a cut decides where corners go, never a label.
+    only: a cut decides where corners go, never a label. With ``layer``,
+    ``hint_table`` is a stack of tables (:func:`mismatch_tables`) and each cell
+    looks in its layer's.
     """
     i0, i1, j0, j1 = boxes.T
     lo, hi = np.where(split_r, i0, j0), np.where(split_r, i1, j1)
@@ -166,7 +202,7 @@ def split_at(
         [np.where(r, i0 + 1, i0), np.where(r, i1 - 1, i1),
          np.where(r, j0, j0 + 1), np.where(r, j1, j1 - 1)], axis=1
     )  # fmt: skip
-    todo = np.flatnonzero(count_in(hint_table, inside) > 0)  # a hinted line to find
+    todo = np.flatnonzero(count_in(hint_table, inside, layer) > 0)  # a hinted line to find
     if not todo.size:
         return mid
     # candidate lines outwards from the middle: mid, mid - 1, mid + 1, mid - 2, ...
@@ -181,10 +217,65 @@ def split_at(
         [np.where(rr, p, o0), np.where(rr, p, o1), np.where(rr, o0, p), np.where(rr, o1, p)],
         axis=-1,
     )
-    found = ok & (count_in(hint_table, lines.reshape(-1, 4)).reshape(p.shape) > 0)
+    at_layer = None if layer is None else layer[t].reshape(-1)
+    found = ok & (count_in(hint_table, lines.reshape(-1, 4), at_layer).reshape(p.shape) > 0)
     at = mid.copy()
     at[todo] = p[np.arange(todo.size), found.argmax(axis=1)]  # the first found (one is)
     return at
+
+
+#: The labels a prediction gives (:data:`tasks.regimes.NO_MOTION`, ``STICK_SLIP``,
+#: ``CONTINUOUS``: the codes of :func:`analysis.predict`); a negative code predicts nothing.
+PREDICTED_LABELS = 3
+
+
+def mismatch_tables(predicted: np.ndarray) -> np.ndarray:
+    """Summed-area tables (:func:`summed_table`, int32, one per label ``c`` of
+    :data:`PREDICTED_LABELS`) of the points a prediction gives another label than
+    ``c``: ``(PREDICTED_LABELS, n_r + 1, n_b + 1)``."""
+    predicted = np.asarray(predicted)
+    out = np.zeros((PREDICTED_LABELS, predicted.shape[0] + 1, predicted.shape[1] + 1), np.int32)
+    for c in range(PREDICTED_LABELS):
+        other = (predicted >= 0) & (predicted != c)
+        out[c, 1:, 1:] = other.cumsum(0, dtype=np.int32).cumsum(1, dtype=np.int32)
+    return out
+
+
+def trusted(boxes: np.ndarray, label: np.ndarray, predicted: np.ndarray, n_b: int) -> np.ndarray:
+    """The label each cell's four corners share and the prediction gives them too (a
+    label of the prediction), -1 where they do not: :meth:`~tasks.adaptive.Refinement._trusted`.
+    ``label`` and ``predicted`` are flat (simulated labels, the prediction)."""
+    c = corners(boxes, n_b)
+    lab = label[c]
+    first = lab[:, :1]
+    same = (lab == first).all(axis=1) & (predicted[c] == first).all(axis=1)
+    ok = same & (first[:, 0] >= 0) & (first[:, 0] < PREDICTED_LABELS)
+    return np.where(ok, first[:, 0], -1).astype(np.int64)
+
+
+def guided(boxes: np.ndarray, trust: np.ndarray, tables: np.ndarray) -> np.ndarray:
+    """Cells whose corners the prediction gives their own label (``trust``, of
+    :func:`trusted`) and that hold a point it gives another (``tables``, of
+    :func:`mismatch_tables`): :meth:`~tasks.adaptive.Refinement._guided`."""
+    out = trust >= 0
+    if out.any():
+        at = np.flatnonzero(out)
+        out[at] = count_in(tables, boxes[at], trust[at]) > 0
+    return out
+
+
+def guided_axes(boxes: np.ndarray, trust: np.ndarray, tables: np.ndarray) -> np.ndarray:
+    """For guided cells (:func:`guided`), whether to halve along r: the longer axis (r
+    if square) of those with a line strictly inside that holds a point the prediction
+    gives another label (one has: such a point is no corner), so that the cut
+    (:func:`split_at` on that label's table) goes through one:
+    :meth:`~tasks.adaptive.Refinement._split_axes`."""
+    i0, i1, j0, j1 = boxes.T
+    lines_r = np.stack([i0 + 1, i1 - 1, j0, j1], axis=1)  # the lines across r, inside
+    lines_b = np.stack([i0, i1, j0 + 1, j1 - 1], axis=1)
+    can_r = (i1 - i0 > 1) & (count_in(tables, lines_r, trust) > 0)
+    can_b = (j1 - j0 > 1) & (count_in(tables, lines_b, trust) > 0)
+    return np.where(can_r == can_b, i1 - i0 >= j1 - j0, can_r)
 
 
 def interior(boxes: np.ndarray) -> np.ndarray:
@@ -229,9 +320,17 @@ def summed_table(mask: np.ndarray) -> np.ndarray:
     return out
 
 
-def count_in(table: np.ndarray, boxes: np.ndarray) -> np.ndarray:
-    """Points of the mask of :func:`summed_table` in each cell (ends included)."""
+def count_in(table: np.ndarray, boxes: np.ndarray, layer: np.ndarray | None = None) -> np.ndarray:
+    """Points of the mask of :func:`summed_table` in each cell (ends included); with
+    ``layer``, ``table`` is a stack of tables and each cell counts in its layer's."""
     i0, i1, j0, j1 = boxes.T
+    if layer is not None:
+        return (
+            table[layer, i1 + 1, j1 + 1]
+            - table[layer, i0, j1 + 1]
+            - table[layer, i1 + 1, j0]
+            + table[layer, i0, j0]
+        )
     return table[i1 + 1, j1 + 1] - table[i0, j1 + 1] - table[i1 + 1, j0] + table[i0, j0]
 
 

@@ -178,29 +178,51 @@ class StreamRefinement(Refinement):
         while boxes.shape[0]:
             boxes, at = cells.unique_boxes(boxes)  # each cell once
             depth = depth[at]
-            leaf = self._settled_many(boxes)
+            settled = leaf = self._settled_many(boxes)
             if self.hint is not None and leaf.any():
+                leaf = leaf.copy()
                 leaf[leaf] = ~self._hinted_many(boxes[leaf])
+            wide, tall = boxes[:, 1] - boxes[:, 0], boxes[:, 3] - boxes[:, 2]
+            is_strip = cells.strips(boxes)
+            trust = guided = None
+            if self.predicted is not None:  # the prediction keeps guided cells open
+                trust, guided = self._guided_many(boxes)
+                ask = self._guided_middles_many(boxes[is_strip], sim)
+                open_ = guided.copy()
+                open_[is_strip] = ask.any(axis=1)
+                leaf = leaf & ~open_
             if leaf.any():
                 self._leaf_parts.append((boxes[leaf], depth[leaf]))
-            wide, tall = boxes[:, 1] - boxes[:, 0], boxes[:, 3] - boxes[:, 2]
-            strip = ~leaf & cells.strips(boxes)
+            strip = ~leaf & is_strip
             split = ~leaf & ~strip & ~((wide <= 1) & (tall <= 1))  # unit cells: all known
-            again_b, again_d = self._ask_middles(boxes[strip], depth[strip], key, sim)
-            halves = cells.halves(boxes[split], self.key, self.hint_table)
+            open_strip = settled[strip] if trust is not None else None  # kept open
+            again_b, again_d = self._ask_middles(boxes[strip], depth[strip], key, sim, open_strip)
+            guide = None
+            if trust is not None:  # guided cells halve towards the prediction
+                guide = (np.where(guided, trust, -1)[split], self.mismatch_tables)
+            halves = cells.halves(boxes[split], self.key, self.hint_table, guide)
             half_b, half_d = self._wait(halves, np.repeat(depth[split] + 1, 2))
             boxes = np.concatenate([again_b, half_b])
             depth = np.concatenate([again_d, half_d])
 
     def _ask_middles(
-        self, boxes: np.ndarray, depth: np.ndarray, key: np.ndarray, sim: np.ndarray
+        self,
+        boxes: np.ndarray,
+        depth: np.ndarray,
+        key: np.ndarray,
+        sim: np.ndarray,
+        settled: np.ndarray | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Unresolved strips wait for the middles they ask for (:func:`tasks.cells.strip_middles`,
-        at the level of a halving); those whose middles are simulated already are returned."""
+        at the level of a halving), strips kept open by the prediction (``settled``) for
+        theirs (:func:`tasks.cells.guided_middles`); those whose middles are simulated
+        already are returned."""
         if not boxes.shape[0]:
             return boxes, depth
         a, m, b = cells.strip_edges(boxes, self.shape[1])
         ask = cells.strip_middles(a, m, b, key, sim)
+        if settled is not None and settled.any():
+            ask[settled] = self._guided_middles_many(boxes[settled], sim)
         on = np.where(ask, m, np.where(ask[:, ::-1], m[:, ::-1], m))  # a lone middle twice
         return self._wait(boxes, depth, np.concatenate([on, on], axis=1), depth + 1)
 
@@ -213,6 +235,20 @@ class StreamRefinement(Refinement):
             a, m, b = cells.strip_edges(boxes[strip], self.shape[1])
             out[strip] = cells.resolved_strips(a, m, b, key, sim)
         return out
+
+    def _guided_many(self, boxes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`Refinement._trusted` (the label, -1) and :meth:`Refinement._guided` of every
+        cell of ``boxes`` (a prediction is set)."""
+        label = self.fields[self.label].reshape(-1)
+        trust = cells.trusted(boxes, label, self.predicted.reshape(-1), self.shape[1])
+        return trust, cells.guided(boxes, trust, self.mismatch_tables)
+
+    def _guided_middles_many(self, boxes: np.ndarray, sim: np.ndarray) -> np.ndarray:
+        """:meth:`Refinement._guided_middles` of the strips ``boxes``, as a ``(k, 2)`` mask
+        over their long edges."""
+        a, m, b = cells.strip_edges(boxes, self.shape[1])
+        label = self.fields[self.label].reshape(-1)
+        return cells.guided_middles(a, m, b, label, self.predicted.reshape(-1), sim)
 
     def _hinted_many(self, boxes: np.ndarray) -> np.ndarray:
         """:meth:`Refinement._hinted` of every cell of ``boxes`` (a hint set is fixed)."""

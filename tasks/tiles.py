@@ -64,10 +64,11 @@ def refine_tile(
     beta: np.ndarray,
     coarse_step: int,
     hint: np.ndarray | None = None,
+    predicted: np.ndarray | None = None,
 ) -> tuple[np.ndarray, dict[str, np.ndarray], np.ndarray]:
     """Refine the map of axes ``r`` x ``beta`` (a tile's) until it is settled: the first
     three returns of :func:`refine_tile_cells`."""
-    return refine_tile_cells(simulate, r, beta, coarse_step, hint)[:3]
+    return refine_tile_cells(simulate, r, beta, coarse_step, hint, predicted)[:3]
 
 
 def refine_tile_cells(
@@ -76,6 +77,7 @@ def refine_tile_cells(
     beta: np.ndarray,
     coarse_step: int,
     hint: np.ndarray | None = None,
+    predicted: np.ndarray | None = None,
 ) -> tuple[np.ndarray, dict[str, np.ndarray], np.ndarray, dict[str, np.ndarray]]:
     """Refine the map of axes ``r`` x ``beta`` (a tile's) until it is settled.
 
@@ -89,6 +91,9 @@ def refine_tile_cells(
         The coarse lattice's step in grid steps.
     hint : bool array of shape ``(r.size, beta.size)``, optional
         The closed-form hint restricted to the tile.
+    predicted : int8 array of shape ``(r.size, beta.size)``, optional
+        The closed-form prediction restricted to the tile
+        (:class:`tasks.adaptive.Refinement`).
 
     Returns
     -------
@@ -108,7 +113,7 @@ def refine_tile_cells(
     """
     shape = (r.size, beta.size)
     layout = {k: (FIELDS[k][0], 0) for k in KEY_FIELDS}
-    ref = _TileRefinement(shape, coarse_step, hint, fields=layout)
+    ref = _TileRefinement(shape, coarse_step, hint, fields=layout, predicted=predicted)
     orbits = Orbits(shape, coarse_step)
     done: list[tuple[np.ndarray, dict[str, np.ndarray]]] = []
     while (idx := ref.take()).size:  # every ready point at once: one call per round

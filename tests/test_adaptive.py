@@ -371,11 +371,11 @@ def test_slanted_boundary_is_exact_and_cheap(slope):
 
 
 # --------------------------------------------------------------------------- no barriers
-def shuffled_stream(shape, batch, seed, coarse_step=16, hint=None, dof=1):
+def shuffled_stream(shape, batch, seed, coarse_step=16, hint=None, dof=1, predicted=None):
     """A StreamRefinement driven as a cluster would: random batch sizes, up to four point
     lists in flight, results arriving in a random order."""
     rng = np.random.default_rng(seed)
-    ref = StreamRefinement(shape, coarse_step, hint, dof=dof)
+    ref = StreamRefinement(shape, coarse_step, hint, dof=dof, predicted=predicted)
     inflight: list[np.ndarray] = []
     while not ref.done or inflight:
         while ref.ready and len(inflight) < 4:
@@ -386,8 +386,8 @@ def shuffled_stream(shape, batch, seed, coarse_step=16, hint=None, dof=1):
     return ref
 
 
-def waves(shape, batch, coarse_step=16, hint=None, dof=1):
-    ref = Refinement(shape, coarse_step, hint, dof=dof)
+def waves(shape, batch, coarse_step=16, hint=None, dof=1, predicted=None):
+    ref = Refinement(shape, coarse_step, hint, dof=dof, predicted=predicted)
     while (idx := ref.wave()).size:
         ref.accept(idx, batch(*np.unravel_index(idx, shape)))
     return ref

@@ -24,8 +24,9 @@ from tasks.stream import StreamRefinement
 from tasks.tiles import refine_tile_cells, strips
 
 
-def _tiles(batch, hint, k):
-    """Each tile of ``strips(N_R, 16, k)`` refined alone: rows, plane indices, fields, cells."""
+def _tiles(batch, hint, k, predicted=None):
+    """Each tile of ``strips(N_R, 16, k)`` refined alone: rows, plane indices, fields, cells
+    (with the hint and the prediction restricted to it)."""
 
     def simulate(r, beta, given):  # r and beta are the grid indices here; no orbits
         return batch(r.astype(int), beta.astype(int)) | {"final": np.full((r.size, 4), np.nan)}
@@ -33,9 +34,10 @@ def _tiles(batch, hint, k):
     out = []
     for i0, i1 in strips(N_R, 16, k):
         part = None if hint is None else hint[i0 : i1 + 1]
+        guess = None if predicted is None else predicted[i0 : i1 + 1]
         axis_r = np.arange(i0, i1 + 1, dtype=float)
         idx, arrays, _, cells = refine_tile_cells(
-            simulate, axis_r, np.arange(N_B, dtype=float), 16, part
+            simulate, axis_r, np.arange(N_B, dtype=float), 16, part, guess
         )
         leaves = cells["leaves"] + np.array([i0, i0, 0, 0])  # in the plane's rows
         plane_cells = {
@@ -48,11 +50,11 @@ def _tiles(batch, hint, k):
     return out
 
 
-def _arrive(tiles, order, install: bool) -> StreamRefinement:
+def _arrive(tiles, order, install: bool, predicted=None) -> StreamRefinement:
     """The plane's refinement receiving the tiles in ``order`` as the client does (a point
     of two tiles keeps the fields of the tile of smaller r), then refined to the end."""
     hint = tiles[0][4]
-    plane = StreamRefinement((N_R, N_B), 16, hint)
+    plane = StreamRefinement((N_R, N_B), 16, hint, predicted=predicted)
     plane.take()  # the coarse lattice: the tiles simulate it
     first_row = np.full(plane.n_points, np.iinfo(np.int64).max, dtype=np.int64)
     for n in order:
