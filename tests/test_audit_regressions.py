@@ -231,18 +231,67 @@ def test_an_overdamped_pair_unloaded_up_to_rounding_is_not_refused(monkeypatch):
     beta = np.array(
         [0.30936324590984304, 1.3983590375696318, 0.012921583912340523, 0.010297481414332631]
     )
-    res = classify(scene, r, beta)
+    modal = classify(scene, r, beta)  # a Rayleigh C: the modal kernel (seed 26 below)
+    with monkeypatch.context() as m:  # the damped pairs, as the modal test once sent it
+        m.setattr(
+            classifier, "scene_modes_cached", lambda s: replace(scene_modes(s), proportional=False)
+        )
+        res = classify(scene, r, beta)
     assert np.all(res.converged)
     bound = damped.motion_bound(scene, r)
     np.testing.assert_array_equal(res.regime == regimes.NO_MOTION, beta >= bound)
     assert res.regime.tolist() == [regimes.CONTINUOUS] * 2 + [regimes.NO_MOTION, regimes.CONTINUOUS]
     code, _ = paper_method(scene, float(r[1]), float(beta[1]), cycles=6)
     assert code == res.regime[1]
-    monkeypatch.setattr(
-        classifier, "scene_modes_cached", lambda s: replace(scene_modes(s), proportional=True)
-    )
-    modal = classify(scene, r, beta)
     np.testing.assert_array_equal(modal.regime, res.regime)
+
+
+# audit_random --seed 26, case 1: an 8DOF ground chain (contact on mass 5, ratios from
+# 0.016 to 595) with Rayleigh damping, whose modal damping matrix holds a rounding
+# entry of 1.1e-11 beside two slow modes damped 5e-4 and 1e-3 (2 zeta omega).
+_SEED26 = Scene(
+    "ground",
+    8,
+    5,
+    gamma=[0.1127287335136557, 594.9879483399458, 1.3143440559565147, 0.016374463372345976,
+           0.03498043448217108, 2.0061599846048, 122.84720479357617],
+    kappa=[0.10541539947353579, 266.9674695153335, 0.027672981624885754, 318.89875901617677,
+           23.649747912646585, 390.7692013456516, 506.1324111669125],
+)  # fmt: skip
+_SEED26_RAYLEIGH = ("rayleigh", 0.00026809586437162786, 2.3987529527295717)
+
+
+def test_a_rayleigh_structure_is_modal_whatever_the_rounding():
+    """Rayleigh damping ``a M + b K`` is diagonal in the modes of every phase by
+    construction. The modal test read the rounding of ``Phi^T C Phi`` next to two
+    lightly damped slow modes as a coupling, sent the scene to the damped pairs, and
+    there the slow roots of six overdamped modes, bunched within 1e-5 of -1/b, made
+    one pair look half unloaded: ``classify`` refused a valid scene at every point
+    ("an overdamped pair with one member unloaded"). The same C given as a matrix is
+    modal too (its off-diagonal entries are at the matrix's rounding), while a
+    dashpot's coupling is not. The labels against the energy argument: no motion
+    exactly where beta is at or above the damped motion bound (analysis.damped)."""
+    from analysis import damped
+    from tasks.model import scene_modes
+
+    m = _SEED26.matrices()
+    scene = Scene.from_matrices(**{**m, "damping": _SEED26_RAYLEIGH})
+    a, b = _SEED26_RAYLEIGH[1:]
+    as_matrix = Scene.from_matrices(**{**m, "damping": a * m["mass"] + b * m["stiffness"]})
+    dashpot = np.zeros_like(m["mass"])
+    dashpot[3, 3] = dashpot[4, 4] = 0.05
+    dashpot[3, 4] = dashpot[4, 3] = -0.05
+    with_dashpot = Scene.from_matrices(**{**m, "damping": dashpot})
+    assert scene_modes(scene).proportional and scene_modes(as_matrix).proportional
+    assert not scene_modes(with_dashpot).proportional
+    r = np.array([1.0613, 0.022195, 110.53, 13.685])
+    beta = np.array([0.77314, 0.012147, 0.91795, 0.81544])
+    res = classify(scene, r, beta)
+    assert np.all(res.converged)
+    bound = damped.motion_bound(scene, r)
+    np.testing.assert_array_equal(res.regime == regimes.NO_MOTION, beta >= bound)
+    assert res.regime.tolist() == [regimes.NO_MOTION, regimes.STICK_SLIP] + [regimes.NO_MOTION] * 2
+    np.testing.assert_array_equal(classify(as_matrix, r, beta).regime, res.regime)
 
 
 # audit_random --seed 22 and --seed 23, extra 1: chains given as matrices with dashpots,

@@ -22,7 +22,7 @@ The forces the stuck contacts must carry are
 Everything here is independent of r and beta (``M = r^2 G``: ``Omega = sqrt(lam) / r``).
 
 **Damping** ``r C x'`` (docs/contacts.md 7): where ``X_S^T C X_S`` is diagonal
-(to :data:`PROPORTIONAL_RTOL`), as Rayleigh ``C = a G + b K`` always is
+(:func:`tasks.model.modal_diagonal`), as Rayleigh ``C = a G + b K`` always is
 (``T^T C T = a G_S + b K_S``), each mode gets ``eta'' + 2 sigma eta' + ...`` with
 ``sigma = cdiag / (2 r)`` (docs/structures.md 4.1), and the stuck forces their
 viscous part, ``g_S = H_S (... - r C x')`` with ``x' = X_S eta'``
@@ -43,6 +43,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import eigh, null_space
 
+from tasks.model import modal_diagonal
 from tasks.multicontact.scene import MultiScene
 
 
@@ -121,11 +122,6 @@ class StuckSets:
         )
 
 
-#: Largest off-diagonal of ``X_S^T C X_S`` relative to its largest entry for which the
-#: damping counts as proportional in set S (as one contact's, docs/structures.md 4.1).
-PROPORTIONAL_RTOL = 1e-9
-
-
 def stuck_sets(scene: MultiScene) -> StuckSets:
     """The arrays of every stuck set of ``scene`` (see :class:`StuckSets`).
 
@@ -151,6 +147,7 @@ def stuck_sets(scene: MultiScene) -> StuckSets:
     HKX = np.zeros((n_sets, k, n))
     BX = np.zeros((n_sets, k, n))
     C = scene.damping_matrix(1.0)
+    rayleigh = scene.structures[0].damping_kind == "rayleigh"
     cdiag = np.zeros((n_sets, n))
     HCX = np.zeros((n_sets, k, n))
     general = np.zeros(n_sets)
@@ -176,7 +173,7 @@ def stuck_sets(scene: MultiScene) -> StuckSets:
             BX[S, :, :m] = B.T @ Xs
             if scene.damped:
                 held = [scene.contacts[c] for c in stuck]
-                diag = _modal_damping(Xs.T @ C @ Xs)
+                diag = _modal_damping(Xs.T @ C @ Xs, rayleigh)
                 if diag is not None:
                     cdiag[S, :m] = diag
                 else:  # the damped pairs of the set (docs/structures.md 4.5)
@@ -229,13 +226,12 @@ def stuck_sets(scene: MultiScene) -> StuckSets:
     )
 
 
-def _modal_damping(Cs: np.ndarray) -> np.ndarray | None:
-    """The diagonal of ``Cs = X_S^T C X_S``, or None when it is not diagonal."""
-    diag = np.diag(Cs).copy()
-    off = np.abs(Cs - np.diag(diag)).max(initial=0.0)
-    if off > PROPORTIONAL_RTOL * max(np.abs(Cs).max(), 1e-300):
+def _modal_damping(Cs: np.ndarray, rayleigh: bool) -> np.ndarray | None:
+    """The diagonal of ``Cs = X_S^T C X_S``, or None when it is not diagonal
+    (:func:`tasks.model.modal_diagonal`; a Rayleigh ``C`` always is)."""
+    if not (rayleigh or modal_diagonal(Cs)):
         return None
-    return np.maximum(diag, 0.0)
+    return np.maximum(np.diag(Cs).copy(), 0.0)
 
 
 def _pairs(Gs, Cs, Ks, ps, held: list):
