@@ -188,6 +188,11 @@ def test_cluster_without_workers_stops_after_the_timeout(tmp_path):
     assert not (tmp_path / "o.nc").exists()
 
 
+#: Four times the points of LONG with the `exact` preset: a run still busy when its
+#: fault arrives, however fast the machine (it ends at the fault, not by finishing).
+LONGER = LONG.replace("num = 60", "num = 240").replace('"balanced"', '"exact"')
+
+
 def _start_run(where: Path, *args: str, study: str = LONG) -> subprocess.Popen:
     (where / "long.toml").write_text(study, encoding="utf-8")
     return subprocess.Popen(
@@ -253,12 +258,14 @@ def test_external_cluster_lost_one_line_exit_1(tmp_path, fault):
 
 
 def test_local_workers_killed_until_their_nannies_give_up(tmp_path):
-    """The audit's hang: kill the local worker process every 2 s; after some kills its
+    """The audit's hang: kill the local worker process every 0.5 s; after some kills its
     nanny stops restarting it. The run must stop after --worker-timeout, one line."""
     import psutil
 
     proc = _start_run(
-        tmp_path, "-o", "long.nc", "--workers", "1", "--quiet", "--worker-timeout", "10"
+        tmp_path,
+        *("-o", "long.nc", "--workers", "1", "--quiet", "--worker-timeout", "10"),
+        study=LONGER,  # with LONG, the run finished between 5 kills on a CI run
     )
     _wait_saved(tmp_path / "long.nc", 1, proc)
     deadline = time.monotonic() + WAIT
@@ -271,7 +278,7 @@ def test_local_workers_killed_until_their_nannies_give_up(tmp_path):
                     kills += 1
             except psutil.NoSuchProcess:
                 pass
-        time.sleep(2)
+        time.sleep(0.5)  # a kill lands inside the restarted worker's start-up
     rc, lines, err = _finish(proc)
     if rc == 0:  # the run won the race (finished between kills): nothing to check
         pytest.skip(f"the run finished despite {kills} kills")
@@ -301,11 +308,8 @@ def test_ctrl_c_during_local_cluster_start_one_line(tmp_path):
 def test_interrupted_run_names_the_older_result(tmp_path):
     older = tmp_path / "long.nc"
     older.write_bytes(b"an older result")
-    # four times the points of LONG with the `exact` preset: the run is still busy
-    # when the signal arrives, however fast the machine
-    longer = LONG.replace("num = 60", "num = 240").replace('"balanced"', '"exact"')
     proc = _start_run(
-        tmp_path, "-o", "long.nc", "--workers", "1", "--quiet", "--overwrite", study=longer
+        tmp_path, "-o", "long.nc", "--workers", "1", "--quiet", "--overwrite", study=LONGER
     )
     _wait_saved(older, 1, proc)
     proc.send_signal(signal.SIGTERM)
