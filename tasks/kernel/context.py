@@ -98,6 +98,34 @@ def _undamped_scales(K, b, p, lam, phi, r):
     return min(c, static), _max_abs(resp)
 
 
+#: A held mode is resonant (its frequency the excitation's) to this relative
+#: tolerance of ``Omega^2 - 1``: the rounding of the held system's eigenvalues and of
+#: a grid's r (a grid through r = 1 exactly computes 1 - 2e-16).
+RESONANT_RTOL = 1e-12
+#: ... and unloaded when its modal load is below this fraction of ``|phi_k| |p|``
+#: (the bound of the modal load): the rounding of the eigenvectors (a mode of a held
+#: subsystem that the load does not reach carries about 1e-17 of it).
+UNLOADED_RTOL = 1e-12
+
+
+@njit(cache=True)
+def _lock_unloaded_resonances(seg_stick, load_reach):
+    """Set every undamped held mode that is resonant (:data:`RESONANT_RTOL`) and
+    unloaded (:data:`UNLOADED_RTOL` of ``load_reach``, its modal load's bound) to
+    ``Omega = 1``, load 0 exactly: a free vibration of the held system at the
+    excitation's frequency, which :func:`tasks.kernel.starts._held_response` uses to
+    cancel the held contact force (the absorber's held state, docs/theory.md 3) and
+    :func:`tasks.kernel.events.stick_force_bound` adds to the harmonic of ``g``.
+    Elsewhere nothing changes (a loaded resonance stays resonant)."""
+    for k in range(seg_stick.shape[1]):
+        w = seg_stick[OMEGA, k]
+        if seg_stick[DAMP, k] != 0.0 or abs(w * w - 1.0) > RESONANT_RTOL * max(w * w, 1.0):
+            continue
+        if abs(seg_stick[LOAD_COS, k]) <= UNLOADED_RTOL * load_reach[k]:
+            seg_stick[OMEGA, k] = 1.0
+            seg_stick[LOAD_COS, k] = 0.0
+
+
 @njit(cache=True)
 def _context(r, beta, scene, settings):
     """Per-point constants of both phases, the held initial condition and its phase.
@@ -170,20 +198,29 @@ def _context(r, beta, scene, settings):
     h_slip = step_fraction * math.pi / om_max
     om_slip = om_max
     seg_stick = np.zeros((N_ROWS, m))
+    load_reach = np.zeros(m)
+    p_norm2 = 0.0
+    for i in range(n):
+        p_norm2 += p[i] * p[i]
     om_max = 1.0
     for k in range(m):
         om = math.sqrt(lam_s[k]) / r
         seg_stick[OMEGA, k] = om
         acc = 0.0
+        reach = 0.0  # |load_s[k]| |p|: the bound of |acc| (Cauchy-Schwarz)
         for i in range(n):
             acc += load_s[k, i] * p[i]
+            reach += load_s[k, i] * load_s[k, i]
         seg_stick[LOAD_COS, k] = acc / r2
+        load_reach[k] = math.sqrt(reach * p_norm2) / r2
         seg_stick[ALPHA, k] = -g_modes_s[k]
         # viscous part of g while stuck: -r g_load^T C T phi_s eta' (docs/structures.md 4)
         if g_c_s[k] != 0.0:  # (undamped: row DELTA stays exactly 0)
             seg_stick[DELTA, k] = -r * g_c_s[k]
         seg_stick[DAMP, k] = 0.5 * damp_stick[k] / r
         om_max = max(om_max, om)
+    if not general:
+        _lock_unloaded_resonances(seg_stick, load_reach)
     h_stick = step_fraction * math.pi / om_max
     sc = np.zeros(N_SCALARS)
     sc[WORK_CAP] = max_work
@@ -237,7 +274,7 @@ def _context(r, beta, scene, settings):
     )
     # Held start: contact at d0 = 0, the rest on the forced response of the
     # held system at tau = 0 (from rest if the held system is resonant).
-    X_held, held_exists = _held_response(seg_stick, phi_s, T, n)
+    X_held, held_exists = _held_response(seg_stick, phi_s, T, n, p, K, g_load)
     ic_used = initial_condition
     X = np.zeros(2 * n)
     if initial_condition == IC_HELD or initial_condition >= IC_RANDOM:

@@ -443,7 +443,9 @@ def _held_design(ctx, state, period, c, dout):
     n = (state.shape[0] - 2) // 2
     if period != 1 or state[2 * n] != 0.0 or state[2 * n + 1] != 0.0:
         return False
-    X_held, exists = _held_response(ctx[CTX_SEG_STICK], ctx[CTX_PHI_S], ctx[CTX_T], n)
+    X_held, exists = _held_response(
+        ctx[CTX_SEG_STICK], ctx[CTX_PHI_S], ctx[CTX_T], n, ctx[CTX_P], ctx[CTX_K], ctx[CTX_G_LOAD]
+    )
     if not exists:
         return False
     for i in range(2 * n):

@@ -74,11 +74,14 @@ def _no_zero_between(fa, da, fb, db, h, curvature, slope=np.inf):
 def stick_force_bound(seg, sc):
     """``|G0| + |H| + sum_k |alpha_k| A_free,k``: the largest ``|g|`` a stick phase
     can ever reach (the bound of :func:`never_unsticks`; tight when the free
-    frequencies are incommensurate with the excitation and each other). A damped
-    scene takes :func:`tasks.kernel.damping.stick_force_bound_damped`."""
+    frequencies are incommensurate with the excitation and each other; ``H`` a phasor
+    with the free vibration of an unloaded mode at the excitation's frequency,
+    docs/theory.md 3, the absorber). A damped scene takes
+    :func:`tasks.kernel.damping.stick_force_bound_damped`."""
     if sc[DAMPED] != 0.0:
         return stick_force_bound_damped(seg, sc)
     harmonic = sc[OBS_COS]
+    in_phase = 0.0  # sin tau part of g: free modes at the excitation's frequency
     free_sum = 0.0
     # sc[OBS0] is g at tau0; rebuild the constant part from the modal split.
     const = sc[OBS0] - sc[OBS_COS] * sc[COS_TAU0]
@@ -86,7 +89,20 @@ def stick_force_bound(seg, sc):
         w = seg[OMEGA, k]
         den = w * w - 1.0
         if den == 0.0:
-            return np.inf
+            if seg[LOAD_COS, k] != 0.0:  # resonant and loaded: grows without bound
+                return np.inf
+            # an unloaded mode at the excitation's frequency (tasks.kernel.context,
+            # RESONANT_RTOL): its free vibration d cos(tau - tau0) + e sin(tau - tau0)
+            # is a harmonic of g, added to H as a phasor (docs/theory.md 3, the
+            # absorber's held state)
+            static = seg[LOAD_CONST, k]
+            d = seg[ETA0, k] - static
+            e = seg[ETAD0, k]
+            alpha = seg[ALPHA, k]
+            const -= alpha * d
+            harmonic += alpha * (d * sc[COS_TAU0] - e * sc[SIN_TAU0])
+            in_phase += alpha * (d * sc[SIN_TAU0] + e * sc[COS_TAU0])
+            continue
         pk = seg[LOAD_COS, k] / den
         static = seg[LOAD_CONST, k] / (w * w)
         d = seg[ETA0, k] - static - pk * sc[COS_TAU0]
@@ -96,7 +112,7 @@ def stick_force_bound(seg, sc):
         const -= alpha * (pk * sc[COS_TAU0] + d)
         harmonic += alpha * pk
         free_sum += abs(alpha) * math.hypot(d, e)
-    return abs(const) + abs(harmonic) + free_sum
+    return abs(const) + math.hypot(harmonic, in_phase) + free_sum
 
 
 @njit(**LEAF)

@@ -26,6 +26,7 @@ from tasks.kernel.damping import is_damped, linear_amplitude_damped
 from tasks.kernel.layout import (
     CTX_BETA,
     CTX_F_R2,
+    CTX_G_LOAD,
     CTX_K,
     CTX_P,
     CTX_PHI_S,
@@ -190,7 +191,8 @@ def simulate_point(r, beta, scene, settings, out, final, keep, kept):
         # every start reaches no motion (held_margin): the limit is the held
         # steady state plus a free vibration of the held system that the
         # contact never feels enough to slide
-        X_held, _ = _held_response(ctx[CTX_SEG_STICK], ctx[CTX_PHI_S], ctx[CTX_T], n)
+        seg, phi_s, T = ctx[CTX_SEG_STICK], ctx[CTX_PHI_S], ctx[CTX_T]
+        X_held, _ = _held_response(seg, phi_s, T, n, ctx[CTX_P], ctx[CTX_K], ctx[CTX_G_LOAD])
         final[: 2 * n] = X_held
         final[2 * n] = 0
         _no_motion_by_margin(out, ic_used)

@@ -36,11 +36,18 @@ from tasks.kernel.phases import _contact_force, _dot, _stick_state
 
 
 @njit(cache=True)
-def _held_response(seg_stick, phi_s, T, n):
+def _held_response(seg_stick, phi_s, T, n, p, K, g_load):
     """The held steady state at ``tau = 0``: contact held at zero relative
     displacement, the other coordinates on the forced response of the held
     system (``x_h(tau) = x_h(0) cos tau``). Returns ``(X, exists)``; it does not
-    exist when a loaded mode of the held system is resonant."""
+    exist when a loaded mode of the held system is resonant.
+
+    Where an unloaded undamped held mode is resonant (``Omega = 1``, load 0, set by
+    :func:`tasks.kernel.context._lock_unloaded_resonances`) the held steady states
+    are a family: the forced response plus any free vibration ``A cos tau`` of that
+    mode. The one returned is the absorber's: ``A`` cancels the contact force
+    ``g_h`` (the mode of those that feel the contact most), so the contact needs no
+    friction at all and every start reaches it (docs/theory.md 3)."""
     m = seg_stick.shape[1]
     X = np.zeros(2 * n)
     if is_damped(seg_stick):  # damped: cos and sin parts (tasks.kernel.damping)
@@ -67,7 +74,51 @@ def _held_response(seg_stick, phi_s, T, n):
             qi += phi_s[i, k] * zeta[k]
         for j in range(n):
             X[j] += T[j, i] * qi
+    _absorb_contact_force(X, seg_stick, phi_s, T, n, p, K, g_load)
     return X, True
+
+
+@njit(cache=True)
+def _absorb_contact_force(X, seg_stick, phi_s, T, n, p, K, g_load):
+    """Add to the held steady state ``X`` the free vibration of a resonant unloaded
+    held mode (``Omega = 1``, load 0) that cancels its contact force (the absorber's
+    held state, :func:`_held_response`); nothing where there is no such mode, or it
+    does not reach the contact (its coupling below 1e-12 of its terms)."""
+    m = seg_stick.shape[1]
+    best = -1
+    coupling = 0.0
+    for k in range(m):
+        if seg_stick[OMEGA, k] != 1.0 or seg_stick[LOAD_COS, k] != 0.0:
+            continue
+        c, size = _mode_coupling(k, phi_s, T, n, m, K, g_load)
+        if abs(c) > 1e-12 * size and abs(c) > abs(coupling):
+            best = k
+            coupling = c
+    if best < 0:
+        return
+    amplitude = -_contact_force(p, 1.0, K, X[:n], g_load) / coupling
+    for i in range(m):
+        for j in range(n):
+            X[j] += T[j, i] * phi_s[i, best] * amplitude
+
+
+@njit(cache=True)
+def _mode_coupling(k, phi_s, T, n, m, K, g_load):
+    """``(dg / d eta_k, sum of the sizes of its terms)``: the contact force of held mode
+    ``k`` per unit modal displacement, ``-g_load . K T phi_s[:, k]``."""
+    v = np.zeros(n)
+    for i in range(m):
+        for j in range(n):
+            v[j] += T[j, i] * phi_s[i, k]
+    c = 0.0
+    size = 0.0
+    for i in range(n):
+        kv = 0.0
+        for j in range(n):
+            kv += K[i, j] * v[j]
+        c -= g_load[i] * kv
+        size += abs(g_load[i] * kv)
+    return c, size
 
 
 @njit(cache=True)
@@ -87,7 +138,9 @@ def held_margin(ctx):
     if ctx[CTX_SC][DAMPED] != 0.0:  # g_h = Hc cos tau + Hs sin tau (docs/structures.md 3.1)
         return ctx[CTX_BETA] - held_force_amplitude(seg_stick, ctx[CTX_G_COS])
     n = ctx[CTX_P].shape[0]
-    X, exists = _held_response(seg_stick, ctx[CTX_PHI_S], ctx[CTX_T], n)
+    X, exists = _held_response(
+        seg_stick, ctx[CTX_PHI_S], ctx[CTX_T], n, ctx[CTX_P], ctx[CTX_K], ctx[CTX_G_LOAD]
+    )
     if not exists:
         return -np.inf
     g0 = _contact_force(ctx[CTX_P], 1.0, ctx[CTX_K], X[:n], ctx[CTX_G_LOAD])
