@@ -117,6 +117,10 @@ GOLDEN_ITERATIONS = 32
 maximum goes with its square)."""
 SNAP_ULPS = 4.0
 """r^2 within this many ulp of a held-system eigenvalue counts as its resonance."""
+ABSORBER_RTOL = 1e-12
+"""r^2 within this relative distance of the eigenvalue of an unloaded held mode that
+loads the contact is the absorber's point: the motion bound is 0 there (the
+simulator's tolerance, tasks.kernel.context.RESONANT_RTOL; docs/theory.md 3)."""
 _TAU_COS = 0.1  # from here on cos(tau) - cos(Om tau) is evaluated directly
 _CHUNK = 1 << 20  # elements of the (r, tau, mode) work arrays per block
 
@@ -513,7 +517,9 @@ def motion_bound(scene: Scene, r: ArrayLike) -> np.ndarray:
     ndarray
         Same shape as ``r``; ``inf`` at a resonance of the held system (``r^2``
         within :data:`SNAP_ULPS` ulp of one of its eigenvalues with non-zero
-        residue).
+        residue); 0 where an unloaded held mode that loads the contact is resonant
+        (:data:`ABSORBER_RTOL`): its free vibration, a tuned absorber, cancels the
+        held contact force (docs/theory.md 3).
     """
     _check_scene(scene)
     r_arr = _as_r(r)
@@ -532,6 +538,9 @@ def motion_bound(scene: Scene, r: ArrayLike) -> np.ndarray:
     )
     F = rf**modes.alpha * np.abs(modes.F0 - np.sum(terms, axis=1))
     F = np.where(np.any(snap, axis=1), np.inf, F)
+    absorb = modes.lam_absorb[None, :]
+    tuned = np.abs(absorb - r2) <= ABSORBER_RTOL * np.maximum(absorb, r2)
+    F = np.where(np.any(tuned, axis=1) & np.isfinite(F), 0.0, F)
     return F.reshape(r_arr.shape)
 
 

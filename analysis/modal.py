@@ -77,6 +77,10 @@ class ContactModes:
         Residues of the held contact force (exact zeros: no resonance peak).
     F0 : float
         Quasi-static part ``g_load . p_hat`` of the held contact force.
+    lam_absorb : ndarray
+        Eigenvalues of the held modes the load does not reach but the contact feels
+        (exact zeros of the load, non-zero force): at ``r = sqrt(lam_absorb)`` such
+        a mode is a tuned absorber and the motion bound is 0 (docs/theory.md 3).
     """
 
     lam: np.ndarray
@@ -89,6 +93,7 @@ class ContactModes:
     lam_s: np.ndarray
     z_s: np.ndarray
     F0: float
+    lam_absorb: np.ndarray
 
 
 def _clean(values: np.ndarray, bound: np.ndarray | float) -> np.ndarray:
@@ -100,19 +105,20 @@ def _clean(values: np.ndarray, bound: np.ndarray | float) -> np.ndarray:
 
 def _held_modes(
     K: np.ndarray, G: np.ndarray, T: np.ndarray, g_load: np.ndarray, p_hat: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Eigenvalues and force residues of the held system, block by block
-    (``G`` the mass matrix Gamma, diagonal for a chain, full for a structure)."""
+    (``G`` the mass matrix Gamma, diagonal for a chain, full for a structure), and
+    the eigenvalues of its unloaded modes that load the contact (the absorbers)."""
     m = T.shape[1]
     if m == 0:
-        return np.zeros(0), np.zeros(0)
+        return np.zeros(0), np.zeros(0), np.zeros(0)
     Ks = T.T @ K @ T
     Gs = T.T @ G @ T
     a_row = g_load @ K @ T  # contact force per held coordinate (to be subtracted)
     p_s = T.T @ p_hat  # load on the held coordinates
     coupling = (np.abs(Ks) + np.abs(Gs)) > 0.0
     n_blocks, labels = connected_components(coupling, directed=False)
-    lam_all, z_all = [], []
+    lam_all, z_all, absorb = [], [], []
     for blk in range(n_blocks):
         idx = np.flatnonzero(labels == blk)
         lam_b, phi_b = eigh(Ks[np.ix_(idx, idx)], Gs[np.ix_(idx, idx)])
@@ -121,9 +127,10 @@ def _held_modes(
         ps = _clean(phi_b.T @ p_s[idx], np.linalg.norm(p_s[idx]) * norms)
         lam_all.append(lam_b)
         z_all.append(a * ps)
+        absorb.append(lam_b[(ps == 0.0) & (a != 0.0)])
     lam_s = np.concatenate(lam_all)
     order = np.argsort(lam_s, kind="stable")
-    return lam_s[order], np.concatenate(z_all)[order]
+    return lam_s[order], np.concatenate(z_all)[order], np.sort(np.concatenate(absorb))
 
 
 @lru_cache(maxsize=256)
@@ -149,8 +156,8 @@ def contact_modes(scene: Scene) -> ContactModes:
     cb = _clean(b @ phi, np.sqrt(b_gamma_b))
     p0 = _clean(p_hat @ phi, np.sqrt(p_hat @ inverse_mass_times(G, p_hat)))
     T = sliding.T
-    lam_s, z_s = _held_modes(K, G, T, g_load, p_hat)
-    for arr in (lam, phi, cb, p0, lam_s, z_s):
+    lam_s, z_s, lam_absorb = _held_modes(K, G, T, g_load, p_hat)
+    for arr in (lam, phi, cb, p0, lam_s, z_s, lam_absorb):
         arr.setflags(write=False)
     weights = cb * cb / np.sum(cb * cb)
     weights.setflags(write=False)
@@ -165,4 +172,5 @@ def contact_modes(scene: Scene) -> ContactModes:
         lam_s=lam_s,
         z_s=z_s,
         F0=float(g_load @ p_hat),
+        lam_absorb=lam_absorb,
     )

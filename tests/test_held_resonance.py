@@ -5,8 +5,9 @@ that the load does not reach (a vibration absorber tuned to it), the held steady
 states are a family, and one of them, the absorber's, needs no contact force at all:
 the free vibration of that mode cancels the force on the contact mass. By the energy
 argument of docs/theory.md 3 (with that member as x_h and margin beta), every start
-then reaches no motion, whatever beta > 0, although the closed-form motion bound of
-the member without the free vibration is finite there. The simulator had no such
+then reaches no motion, whatever beta > 0, although the motion bound of the member
+without the free vibration (and of the points either side) is finite; the closed
+form's motion bound is 0 there. The simulator had no such
 member: the 6DOF point r = 1 was ``work_limit`` (a creep of about 1 s per point)
 or ``not_converged``.
 """
@@ -40,8 +41,8 @@ def test_every_start_reaches_no_motion_at_an_unloaded_held_resonance(scene, r):
     from the held, the rest and random starts: no motion, converged, at r exactly
     and one unit of roundoff either side (a grid's r = 1)."""
     assert _unloaded_resonance(scene, r)
-    _, bound = closed_form.boundaries(scene, np.array([r]), "exact")
-    assert 0.5 < bound[0] < np.inf  # the bound of that member: motion below it
+    bound = closed_form.motion_bound(scene, np.array([r * (1 + 1e-9)]))
+    assert 0.5 < bound[0] < np.inf  # the bound of the member A = 0: motion below it
     beta = bound[0] * np.array([0.01, 0.1, 0.4, 0.9])
     rs = np.array([np.nextafter(r, 0.0), r, np.nextafter(r, 2.0)])
     rr, bb = (a.ravel() for a in np.meshgrid(rs, beta, indexing="ij"))
@@ -76,3 +77,18 @@ def test_the_absorbers_held_state_in_closed_form():
     np.testing.assert_allclose(res.amplitude[:, 1], 1.0, rtol=1e-12)
     np.testing.assert_allclose(res.amplitude[:, 0], 0.0, atol=1e-12)
     np.testing.assert_allclose(res.contact_force_amplitude, 0.0, atol=1e-12)
+
+
+@pytest.mark.parametrize(("scene", "r"), SCENES, ids=lambda v: str(v)[:40])
+def test_the_closed_form_knows_the_absorber(scene, r):
+    """The motion bound is 0 at the absorber's r (and one ulp either side), the limit
+    of its neighbours 1e-6 away (finite, continuous through it), and the prediction
+    is no motion there for every beta > 0, as the simulator finds."""
+    rs = np.array([np.nextafter(r, 0.0), r, np.nextafter(r, 2.0)])
+    assert np.array_equal(closed_form.motion_bound(scene, rs), np.zeros(3))
+    near = closed_form.motion_bound(scene, np.array([r - 1e-6, r + 1e-6]))
+    assert np.all((near > 0.5) & (near < np.inf)) and abs(near[0] - near[1]) < 1e-4
+    beta = np.array([1e-3, 0.3, 0.9]) * near[0]
+    rr, bb = (a.ravel() for a in np.meshgrid(rs, beta, indexing="ij"))
+    for method in ("paper", "exact"):
+        assert np.all(closed_form.predict(scene, rr, bb, method) == regimes.NO_MOTION)
