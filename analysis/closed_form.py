@@ -77,6 +77,7 @@ from numpy.typing import ArrayLike
 
 from analysis import damped
 from analysis.modal import ContactModes, contact_modes
+from tasks.kernel.context import RESONANT_RTOL
 from tasks.regimes import CONTINUOUS, NO_MOTION, STICK_SLIP
 from tasks.scene import Scene
 
@@ -117,10 +118,10 @@ GOLDEN_ITERATIONS = 32
 maximum goes with its square)."""
 SNAP_ULPS = 4.0
 """r^2 within this many ulp of a held-system eigenvalue counts as its resonance."""
-ABSORBER_RTOL = 1e-12
-"""r^2 within this relative distance of the eigenvalue of an unloaded held mode that
-loads the contact is the absorber's point: the motion bound is 0 there (the
-simulator's tolerance, tasks.kernel.context.RESONANT_RTOL; docs/theory.md 3)."""
+ABSORBER_RTOL = RESONANT_RTOL
+"""r^2 within this relative distance (1e-12, the simulator's) of the eigenvalue of an
+unloaded held mode that loads the contact is the absorber's point: the motion bound
+is 0 there (docs/theory.md 3)."""
 _TAU_COS = 0.1  # from here on cos(tau) - cos(Om tau) is evaluated directly
 _CHUNK = 1 << 20  # elements of the (r, tau, mode) work arrays per block
 
@@ -644,7 +645,10 @@ def predict(scene: Scene, r: ArrayLike, beta: ArrayLike, method: str = "paper") 
     ndarray of int8
         :data:`tasks.regimes.NO_MOTION` where ``beta >= beta_motion`` (also where
         the bounds cross), else :data:`tasks.regimes.CONTINUOUS` where
-        ``beta < beta_continuous``, else :data:`tasks.regimes.STICK_SLIP`.
+        ``beta < beta_continuous``, else :data:`tasks.regimes.STICK_SLIP`;
+        ``beta = 0`` (the linear system, as the simulator labels it) is always
+        :data:`tasks.regimes.CONTINUOUS`, also where ``beta_motion`` is 0 (a tuned
+        absorber, :func:`motion_bound`).
     """
     r_arr = _as_r(r)
     beta_arr = np.asarray(beta)
@@ -666,7 +670,7 @@ def predict(scene: Scene, r: ArrayLike, beta: ArrayLike, method: str = "paper") 
     codes = np.where(
         beta_b >= b_motion, NO_MOTION, np.where(beta_b < b_cont, CONTINUOUS, STICK_SLIP)
     )
-    return codes.astype(np.int8)
+    return np.where(beta_b == 0.0, CONTINUOUS, codes).astype(np.int8)
 
 
 def held_resonances(scene: Scene) -> np.ndarray:

@@ -17,13 +17,26 @@ INTERRUPTED = "study: interrupted"
 
 
 def main() -> int:
-    """Import :mod:`study.cli` with SIGINT deferred, then run the command line."""
+    """Import :mod:`study.cli` with SIGINT deferred, then run the command line.
+
+    The command imports its heavy modules (numpy, numba, xarray, Dask) only when it
+    needs them, with SIGINT live: there a Ctrl-C raises :class:`KeyboardInterrupt`
+    as usual, and is also recorded, so that an :class:`ImportError` it caused inside
+    a compiled extension's initialisation ends the command as interrupted too."""
     caught: list[int] = []
     previous = signal.signal(signal.SIGINT, lambda signum, frame: caught.append(signum))
     try:
         from study.cli import main as command
     finally:
         signal.signal(signal.SIGINT, previous)
+
+    def interrupt(signum, frame) -> None:
+        caught.append(signum)
+        raise KeyboardInterrupt
+
+    live = signal.getsignal(signal.SIGINT)
+    if live is signal.default_int_handler:
+        signal.signal(signal.SIGINT, interrupt)
     try:
         if caught:
             raise KeyboardInterrupt
@@ -31,3 +44,10 @@ def main() -> int:
     except KeyboardInterrupt:
         print(INTERRUPTED, file=sys.stderr)
         return 130
+    except ImportError:
+        if not caught:  # a real one: its traceback says what is missing
+            raise
+        print(INTERRUPTED, file=sys.stderr)
+        return 130
+    finally:
+        signal.signal(signal.SIGINT, live)

@@ -104,8 +104,9 @@ def _undamped_scales(K, b, p, lam, phi, r):
 RESONANT_RTOL = 1e-12
 #: ... and unloaded when its modal load is below this fraction of ``|phi_k| |p|``
 #: (the bound of the modal load): the rounding of the eigenvectors (a mode of a held
-#: subsystem that the load does not reach carries about 1e-17 of it).
-UNLOADED_RTOL = 1e-12
+#: subsystem that the load does not reach carries about 1e-17 of it); the closed
+#: forms' exact zeros use the same fraction (analysis.modal.NOISE).
+UNLOADED_RTOL = 1e-13
 
 
 @njit(cache=True)
