@@ -16,6 +16,7 @@ from numba import njit
 
 from tasks.kernel.damping import held_force_amplitude, held_modal_state, is_damped
 from tasks.kernel.layout import (
+    ALPHA,
     CTX_B,
     CTX_BETA,
     CTX_G_C,
@@ -82,43 +83,27 @@ def _held_response(seg_stick, phi_s, T, n, p, K, g_load):
 def _absorb_contact_force(X, seg_stick, phi_s, T, n, p, K, g_load):
     """Add to the held steady state ``X`` the free vibration of a resonant unloaded
     held mode (``Omega = 1``, load 0) that cancels its contact force (the absorber's
-    held state, :func:`_held_response`); nothing where there is no such mode, or it
-    does not reach the contact (its coupling below 1e-12 of its terms)."""
+    held state, :func:`_held_response`): of such modes the one with the largest
+    coupling ``alpha_k`` to ``g`` (row ALPHA); nothing where there is none, or it
+    does not reach the contact (``alpha_k`` below 1e-12 of the largest)."""
     m = seg_stick.shape[1]
+    biggest = 0.0
+    for k in range(m):
+        biggest = max(biggest, abs(seg_stick[ALPHA, k]))
     best = -1
-    coupling = 0.0
+    coupling = 1e-12 * biggest
     for k in range(m):
         if seg_stick[OMEGA, k] != 1.0 or seg_stick[LOAD_COS, k] != 0.0:
             continue
-        c, size = _mode_coupling(k, phi_s, T, n, m, K, g_load)
-        if abs(c) > 1e-12 * size and abs(c) > abs(coupling):
+        if abs(seg_stick[ALPHA, k]) > abs(coupling):
             best = k
-            coupling = c
+            coupling = seg_stick[ALPHA, k]
     if best < 0:
         return
     amplitude = -_contact_force(p, 1.0, K, X[:n], g_load) / coupling
     for i in range(m):
         for j in range(n):
             X[j] += T[j, i] * phi_s[i, best] * amplitude
-
-
-@njit(cache=True)
-def _mode_coupling(k, phi_s, T, n, m, K, g_load):
-    """``(dg / d eta_k, sum of the sizes of its terms)``: the contact force of held mode
-    ``k`` per unit modal displacement, ``-g_load . K T phi_s[:, k]``."""
-    v = np.zeros(n)
-    for i in range(m):
-        for j in range(n):
-            v[j] += T[j, i] * phi_s[i, k]
-    c = 0.0
-    size = 0.0
-    for i in range(n):
-        kv = 0.0
-        for j in range(n):
-            kv += K[i, j] * v[j]
-        c -= g_load[i] * kv
-        size += abs(g_load[i] * kv)
-    return c, size
 
 
 @njit(cache=True)
